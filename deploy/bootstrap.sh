@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Installs every Debian package erg needs to build, test and run.
+# Idempotent and non-interactive: packages already present are skipped, so a
+# second run is a no-op that only checks. Needs root (or passwordless sudo).
+# The CUDA toolkit is not a Debian package here: it is expected at
+# /usr/local/cuda (nvcc); without it erg builds the CPU backend only.
+set -euo pipefail
+
+packages=(
+  # toolchain
+  build-essential cmake ninja-build pkg-config git clang-format
+  # MPI and parallel HDF5 (the worker, snapshots, checkpoints)
+  openmpi-bin libopenmpi-dev libhdf5-openmpi-dev hdf5-tools
+  # FFT for the wind-warping Gaussian smoothing on the CPU backend
+  libfftw3-dev
+  # the job schema (protobuf JSON) and the service
+  libprotobuf-dev protobuf-compiler libgrpc++-dev protobuf-compiler-grpc
+  # previews and map files
+  libpng-dev zlib1g-dev
+  # job store
+  libsqlite3-dev
+  # tests and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev
+  # test helpers that read our outputs with tools erg did not write
+  python3 python3-h5py python3-numpy
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "bootstrap: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "bootstrap: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -q
+$SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+echo "bootstrap: done"

@@ -1,0 +1,72 @@
+// Host storage of one padded per-cell field (see grid.h).
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdlib>
+#include <cstring>
+#include <new>
+#include <utility>
+
+#include "core/grid.h"
+
+namespace erg {
+
+template <class T>
+class Field {
+ public:
+  Field() = default;
+  explicit Field(const TileGeom& g, T fill = T{}) { reset(g, fill); }
+  Field(const Field& o) { *this = o; }
+  Field& operator=(const Field& o) {
+    if (this != &o) {
+      allocate(o.n_);
+      geom_ = o.geom_;
+      if (n_) std::memcpy(data_, o.data_, n_ * sizeof(T));
+    }
+    return *this;
+  }
+  Field(Field&& o) noexcept { swap(o); }
+  Field& operator=(Field&& o) noexcept {
+    swap(o);
+    return *this;
+  }
+  ~Field() { std::free(data_); }
+
+  void reset(const TileGeom& g, T fill = T{}) {
+    geom_ = g;
+    allocate(g.size());
+    std::fill(data_, data_ + n_, fill);
+  }
+  void swap(Field& o) noexcept {
+    std::swap(data_, o.data_);
+    std::swap(n_, o.n_);
+    std::swap(geom_, o.geom_);
+  }
+
+  T* data() { return data_; }
+  const T* data() const { return data_; }
+  std::size_t size() const { return n_; }
+  const TileGeom& geom() const { return geom_; }
+  T& operator()(int x, int y) { return data_[geom_.at(x, y)]; }
+  const T& operator()(int x, int y) const { return data_[geom_.at(x, y)]; }
+  T* row(int y) { return data_ + geom_.at(0, y); }
+  const T* row(int y) const { return data_ + geom_.at(0, y); }
+
+ private:
+  void allocate(std::size_t n) {
+    if (n == n_ && data_) return;
+    std::free(data_);
+    data_ = nullptr;
+    n_ = n;
+    if (n == 0) return;
+    std::size_t bytes = (n * sizeof(T) + 63) / 64 * 64;
+    data_ = static_cast<T*>(std::aligned_alloc(64, bytes));
+    if (!data_) throw std::bad_alloc();
+  }
+  T* data_ = nullptr;
+  std::size_t n_ = 0;
+  TileGeom geom_{};
+};
+
+}  // namespace erg

@@ -1,0 +1,103 @@
+// Files a run writes and reads: HDF5 snapshots (+ XDMF sidecar), exact
+// checkpoints, hillshaded PNG previews, and input maps (HDF5, 16-bit PNG).
+//
+// Every file is written to "<path>.tmp-<pid>" and renamed over <path> only
+// when complete and flushed, so a reader (or a crash) never sees half a file.
+// All 2-D arrays here are row-major [ny][nx] without halo; row 0 is y = 0.
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace erg::io {
+
+// Raised for any I/O failure; the message names the file and the cause.
+struct IoError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// ---- snapshots -------------------------------------------------------------
+// Root attributes of a snapshot file (the file contract in README.md).
+struct SnapshotMeta {
+  std::int64_t step = 0;
+  double time_days = 0;
+  double cell_size_m = 1;
+  int nx = 0, ny = 0;
+  std::string job_spec_json;      // the full, defaults-filled job spec
+  std::string erg_version;
+  double unit_m = 0;              // height of one integer unit, metres
+  std::string sand_units_total;   // exact totals as decimal strings
+  std::string bedrock_units_total;
+  std::string airborne_units_total;
+  std::uint64_t seed = 0;
+  std::string backend;            // "cpu" or "cuda"
+};
+
+struct SnapshotFields {
+  const float* bedrock = nullptr;     // metres
+  const float* sand = nullptr;        // metres (on the ground)
+  const float* vegetation = nullptr;  // [0, 1]
+  const float* wind = nullptr;        // m/s, [ny][nx][2] interleaved (x, y)
+  const float* airborne = nullptr;    // metres of saltating sand; optional
+  const float* shadow = nullptr;      // [0, 1]; optional
+};
+
+// Writes datasets /bedrock /sand /vegetation (float32 [ny][nx]), /wind
+// (float32 [ny][nx][2]) and, when given, /airborne /shadow; deflate+shuffle,
+// chunked; the root attributes of SnapshotMeta. Atomic (write then rename).
+void write_snapshot(const std::string& path, const SnapshotMeta& meta, const SnapshotFields& f);
+
+// XDMF sidecar so ParaView opens the snapshot (2-D structured grid, cell size
+// as spacing, attributes bedrock, sand, vegetation, wind, height). `h5_name`
+// is the snapshot file name relative to the XDMF file.
+void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const SnapshotMeta& meta,
+                bool has_airborne, bool has_shadow);
+
+// Reads a snapshot back (tests, tools). Missing optional datasets stay empty.
+struct Snapshot {
+  SnapshotMeta meta;
+  std::vector<float> bedrock, sand, vegetation, wind, airborne, shadow;
+};
+Snapshot read_snapshot(const std::string& path);
+
+// ---- checkpoints -----------------------------------------------------------
+// The exact integer state: enough to continue a run bitwise identically.
+struct Checkpoint {
+  std::int64_t step = 0;
+  int nx = 0, ny = 0;
+  std::string job_spec_json;
+  std::vector<std::int64_t> bedrock_units, sand_units, airborne_units;
+  std::vector<float> vegetation, resistance;
+  // Named 128-bit ledgers (e.g. sand added by events), as decimal strings.
+  std::vector<std::pair<std::string, std::string>> ledger;
+};
+void write_checkpoint(const std::string& path, const Checkpoint& c);  // atomic
+Checkpoint read_checkpoint(const std::string& path);
+
+// ---- previews --------------------------------------------------------------
+// Hillshaded PNG (8-bit RGB, one pixel per cell, north up): bare bedrock in
+// grey, sand tinted from pale to deep ochre with thickness, vegetation green,
+// lit from the north-west at 45 degrees with the true cell size (the domain is
+// a torus: slopes wrap at the edges). Images wider than max_px are reduced by
+// box-averaging. Atomic.
+void write_preview_png(const std::string& path, int nx, int ny, double cell_size_m,
+                       const float* bedrock, const float* sand, const float* vegetation,
+                       int max_px = 2048);
+
+// ---- input maps ------------------------------------------------------------
+// A 2-D map read as doubles, row-major [ny][nx], row 0 = y = 0 (south).
+struct Map {
+  int nx = 0, ny = 0;
+  std::vector<double> values;
+};
+// HDF5: a 2-D dataset [ny][nx] of any integer or float type.
+Map read_hdf5_map(const std::string& path, const std::string& dataset);
+// 16-bit (or 8-bit) greyscale PNG; values normalised to [0, 1]. The first
+// image row is the north edge (y = ny - 1), as in any image viewer.
+Map read_png_map(const std::string& path);
+// 16-bit greyscale PNG writer (tests, exports): values in [0, 1], row 0 = south.
+void write_png16(const std::string& path, int nx, int ny, const std::vector<double>& values01);
+
+}  // namespace erg::io
