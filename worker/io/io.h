@@ -81,7 +81,7 @@ Checkpoint read_checkpoint(const std::string& path);
 // grey, sand tinted from pale to deep ochre with thickness, vegetation green,
 // lit from the north-west at 45 degrees with the true cell size (the domain is
 // a torus: slopes wrap at the edges). Images wider than max_px are reduced by
-// box-averaging. Atomic.
+// box-averaging. `vegetation` may be null (none). Atomic.
 void write_preview_png(const std::string& path, int nx, int ny, double cell_size_m,
                        const float* bedrock, const float* sand, const float* vegetation,
                        int max_px = 2048);
@@ -95,7 +95,9 @@ struct Map {
 // HDF5: a 2-D dataset [ny][nx] of any integer or float type.
 Map read_hdf5_map(const std::string& path, const std::string& dataset);
 // 16-bit (or 8-bit) greyscale PNG; values normalised to [0, 1]. The first
-// image row is the north edge (y = ny - 1), as in any image viewer.
+// image row is the north edge (y = ny - 1), as in any image viewer. RGB and
+// palette images read as Rec. 709 luminance of the stored values (no gamma);
+// alpha is ignored.
 Map read_png_map(const std::string& path);
 // 16-bit greyscale PNG writer (tests, exports): values in [0, 1], row 0 = south.
 void write_png16(const std::string& path, int nx, int ny, const std::vector<double>& values01);

@@ -1,0 +1,188 @@
+// Checkpoints: the exact integer state of a run in one HDF5 file, enough to
+// continue bitwise identically. Layout (all [ny][nx], deflate + shuffle):
+//   int64   /bedrock_units /sand_units /airborne_units
+//   float32 /vegetation /resistance
+// root attributes: format = "erg-checkpoint", format_version = 1, step, nx,
+// ny (int64), job_spec (string) and one string "ledger_<name>" per ledger.
+#include <climits>
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "io/atomic_file.h"
+#include "io/hdf5_util.h"
+#include "io/io.h"
+
+namespace erg::io {
+namespace {
+
+using detail::AtomicFile;
+using detail::fail;
+using detail::Hid;
+
+constexpr const char* kFormat = "erg-checkpoint";
+constexpr std::int64_t kFormatVersion = 1;
+constexpr const char* kLedgerPrefix = "ledger_";
+
+// Checkpoints are written often and read only on restart: favour speed.
+constexpr int kCheckpointDeflate = 1;
+
+// A ledger value is an exact decimal integer, optionally negative.
+bool is_decimal(const std::string& s) {
+  std::size_t i = !s.empty() && s[0] == '-' ? 1 : 0;
+  if (i == s.size()) return false;
+  for (; i < s.size(); ++i) {
+    if (s[i] < '0' || s[i] > '9') return false;
+  }
+  return true;
+}
+
+herr_t collect_ledger_name(hid_t /*loc*/, const char* name, const H5A_info_t* /*info*/,
+                           void* data) {
+  try {
+    std::string n = name;
+    if (n.rfind(kLedgerPrefix, 0) == 0) static_cast<std::vector<std::string>*>(data)->push_back(n);
+  } catch (...) {
+    return -1;  // no exception may cross the C library
+  }
+  return 0;
+}
+
+}  // namespace
+
+void write_checkpoint(const std::string& path, const Checkpoint& c) {
+  // Validate everything before touching the disk.
+  if (c.nx <= 0 || c.ny <= 0) {
+    fail(path, "invalid grid " + std::to_string(c.nx) + " x " + std::to_string(c.ny) +
+                   " (nx and ny must be positive)");
+  }
+  const std::size_t n = static_cast<std::size_t>(c.nx) * static_cast<std::size_t>(c.ny);
+  auto check_size = [&](const char* name, std::size_t size) {
+    if (size != n) {
+      fail(path, std::string("checkpoint field '") + name + "' has " + std::to_string(size) +
+                     " values, expected nx * ny = " + std::to_string(n));
+    }
+  };
+  check_size("bedrock_units", c.bedrock_units.size());
+  check_size("sand_units", c.sand_units.size());
+  check_size("airborne_units", c.airborne_units.size());
+  check_size("vegetation", c.vegetation.size());
+  check_size("resistance", c.resistance.size());
+  for (std::size_t i = 0; i < c.ledger.size(); ++i) {
+    const auto& [name, value] = c.ledger[i];
+    if (name.empty()) fail(path, "ledger entry with an empty name");
+    if (!is_decimal(value)) {
+      fail(path, "ledger '" + name + "' value '" + value + "' is not a decimal integer");
+    }
+    for (std::size_t j = 0; j < i; ++j) {
+      if (c.ledger[j].first == name) fail(path, "ledger '" + name + "' appears twice");
+    }
+  }
+
+  AtomicFile out(path);
+  std::vector<char> image;
+  {
+    detail::Hdf5Guard guard;
+    // Track attribute creation order on the root group so the ledger reads
+    // back in the order it was written.
+    Hid fcpl = detail::checked(H5Pcreate(H5P_FILE_CREATE), H5Pclose, path, "H5Pcreate(fcpl)");
+    detail::check(
+        H5Pset_attr_creation_order(fcpl.get(), H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED), path,
+        "H5Pset_attr_creation_order");
+    Hid file = detail::create_hdf5_in_memory(out, fcpl.get());
+    const hid_t fid = file.get();
+    const std::vector<hsize_t> grid = {static_cast<hsize_t>(c.ny), static_cast<hsize_t>(c.nx)};
+    auto ints = [&](const char* name, const std::vector<std::int64_t>& v) {
+      detail::write_dataset(fid, name, H5T_STD_I64LE, H5T_NATIVE_INT64, grid, v.data(),
+                            kCheckpointDeflate, path);
+    };
+    auto floats = [&](const char* name, const std::vector<float>& v) {
+      detail::write_dataset(fid, name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, grid, v.data(),
+                            kCheckpointDeflate, path);
+    };
+    ints("bedrock_units", c.bedrock_units);
+    ints("sand_units", c.sand_units);
+    ints("airborne_units", c.airborne_units);
+    floats("vegetation", c.vegetation);
+    floats("resistance", c.resistance);
+
+    detail::write_attr_str(fid, "format", kFormat, path);
+    detail::write_attr_i64(fid, "format_version", kFormatVersion, path);
+    detail::write_attr_i64(fid, "step", c.step, path);
+    detail::write_attr_i64(fid, "nx", c.nx, path);
+    detail::write_attr_i64(fid, "ny", c.ny, path);
+    detail::write_attr_str(fid, "job_spec", c.job_spec_json, path);
+    for (const auto& [name, value] : c.ledger) {
+      detail::write_attr_str(fid, kLedgerPrefix + name, value, path);
+    }
+
+    image = detail::take_hdf5_image(file, path);
+  }
+  out.write_whole(image.data(), image.size());
+  out.commit();
+}
+
+Checkpoint read_checkpoint(const std::string& path) {
+  detail::Hdf5Guard guard;
+  Hid file = detail::open_hdf5_readonly(path, "checkpoint");
+  const hid_t fid = file.get();
+
+  // Identify the file before anything else, so that handing a snapshot or
+  // any other HDF5 file to --resume says so plainly.
+  if (H5Aexists(fid, "format") <= 0 || detail::read_attr_str(fid, "format", path) != kFormat) {
+    fail(path,
+         "not an erg checkpoint (root attribute 'format' is not \"" + std::string(kFormat) + "\")");
+  }
+  std::int64_t version = detail::read_attr_i64(fid, "format_version", path);
+  if (version != kFormatVersion) {
+    fail(path, "checkpoint format_version " + std::to_string(version) +
+                   " is not supported (this build reads " + std::to_string(kFormatVersion) + ")");
+  }
+
+  Checkpoint c;
+  c.step = detail::read_attr_i64(fid, "step", path);
+  std::int64_t nx = detail::read_attr_i64(fid, "nx", path);
+  std::int64_t ny = detail::read_attr_i64(fid, "ny", path);
+  if (nx <= 0 || ny <= 0 || nx > INT_MAX || ny > INT_MAX) {
+    fail(path,
+         "checkpoint grid " + std::to_string(nx) + " x " + std::to_string(ny) + " is out of range");
+  }
+  c.nx = static_cast<int>(nx);
+  c.ny = static_cast<int>(ny);
+  c.job_spec_json = detail::read_attr_str(fid, "job_spec", path);
+
+  // Every dataset must be exactly [ny][nx]; read_dataset says which is not.
+  const std::vector<hsize_t> grid = {static_cast<hsize_t>(ny), static_cast<hsize_t>(nx)};
+  c.bedrock_units =
+      detail::read_dataset<std::int64_t>(fid, "bedrock_units", H5T_NATIVE_INT64, grid, path);
+  c.sand_units =
+      detail::read_dataset<std::int64_t>(fid, "sand_units", H5T_NATIVE_INT64, grid, path);
+  c.airborne_units =
+      detail::read_dataset<std::int64_t>(fid, "airborne_units", H5T_NATIVE_INT64, grid, path);
+  c.vegetation = detail::read_dataset<float>(fid, "vegetation", H5T_NATIVE_FLOAT, grid, path);
+  c.resistance = detail::read_dataset<float>(fid, "resistance", H5T_NATIVE_FLOAT, grid, path);
+
+  // Ledgers in creation order; a file made without creation-order tracking
+  // (by another tool) falls back to name order.
+  std::vector<std::string> names;
+  hsize_t idx = 0;
+  if (H5Aiterate2(fid, H5_INDEX_CRT_ORDER, H5_ITER_INC, &idx, collect_ledger_name, &names) < 0) {
+    H5Eclear2(H5E_DEFAULT);
+    names.clear();
+    idx = 0;
+    detail::check(H5Aiterate2(fid, H5_INDEX_NAME, H5_ITER_INC, &idx, collect_ledger_name, &names),
+                  path, "cannot list attributes");
+  }
+  for (const std::string& attr : names) {
+    std::string value = detail::read_attr_str(fid, attr, path);
+    std::string name = attr.substr(std::string(kLedgerPrefix).size());
+    if (!is_decimal(value)) {
+      fail(path, "ledger '" + name + "' value '" + value + "' is not a decimal integer");
+    }
+    c.ledger.emplace_back(std::move(name), std::move(value));
+  }
+  return c;
+}
+
+}  // namespace erg::io
