@@ -1,0 +1,273 @@
+// erg: the command line for users.
+//   erg run JOB.json --out DIR [--steps N] [--snapshot-every K] [--threads T] [--backend B]
+//   erg run --resume DIR [--steps N]
+//   erg check JOB.json      validate a job and print it with every default filled in
+//   erg params              every model parameter: default, range, unit, source
+// `erg run` starts erg-worker (next to this program, or $ERG_WORKER) and draws
+// a progress bar from the JSON-lines events the worker writes to fd 3.
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "job/run_flags.h"
+#include "job/spec.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// Minimal reader of the flat JSON objects erg-worker emits.
+std::map<std::string, std::string> parse_flat_json(const std::string& line) {
+  std::map<std::string, std::string> out;
+  size_t i = 0;
+  auto skip = [&] {
+    while (i < line.size() && (line[i] == ' ' || line[i] == ',' || line[i] == '{' || line[i] == '}')) ++i;
+  };
+  while (i < line.size()) {
+    skip();
+    if (i >= line.size() || line[i] != '"') break;
+    size_t k = line.find('"', i + 1);
+    if (k == std::string::npos) break;
+    std::string key = line.substr(i + 1, k - i - 1);
+    i = k + 1;
+    if (i < line.size() && line[i] == ':') ++i;
+    std::string value;
+    if (i < line.size() && line[i] == '"') {
+      ++i;
+      while (i < line.size() && line[i] != '"') {
+        if (line[i] == '\\' && i + 1 < line.size()) ++i;
+        value += line[i++];
+      }
+      ++i;
+    } else if (i < line.size() && line[i] == '{') {
+      int depth = 0;
+      size_t start = i;
+      do {
+        if (line[i] == '{') ++depth;
+        if (line[i] == '}') --depth;
+        ++i;
+      } while (i < line.size() && depth > 0);
+      value = line.substr(start, i - start);
+    } else {
+      while (i < line.size() && line[i] != ',' && line[i] != '}') value += line[i++];
+    }
+    out[key] = value;
+  }
+  return out;
+}
+
+std::string fmt_duration(double s) {
+  if (!(s >= 0) || s > 1e8) return "--:--";
+  const long t = static_cast<long>(s + 0.5);
+  char buf[32];
+  if (t >= 3600) std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", t / 3600, (t / 60) % 60, t % 60);
+  else std::snprintf(buf, sizeof buf, "%ld:%02ld", t / 60, t % 60);
+  return buf;
+}
+
+class ProgressBar {
+ public:
+  ProgressBar() : tty_(::isatty(STDERR_FILENO) == 1) {}
+  void update(long long step, long long steps, double rate, double eta) {
+    const double frac = steps > 0 ? static_cast<double>(step) / static_cast<double>(steps) : 1.0;
+    if (!tty_) {
+      // Logs and CI: a line per 10%.
+      const int decile = static_cast<int>(std::floor(frac * 10 + 1e-9));
+      if (decile <= last_decile_) return;
+      last_decile_ = decile;
+    }
+    constexpr int kWidth = 30;
+    const int filled = static_cast<int>(frac * kWidth);
+    std::string bar(static_cast<size_t>(filled), '#');
+    bar.resize(kWidth, '.');
+    char line[256];
+    std::snprintf(line, sizeof line, "step %lld/%lld [%s] %3d%%  %.2f steps/s  ETA %s  snapshots %d", step,
+                  steps, bar.c_str(), static_cast<int>(frac * 100), rate, fmt_duration(eta).c_str(), snapshots_);
+    std::cerr << (tty_ ? "\r" : "") << line << (tty_ ? "\033[K" : "\n") << std::flush;
+    drawn_ = true;
+  }
+  void snapshot() { ++snapshots_; }
+  void finish() {
+    if (tty_ && drawn_) std::cerr << "\n";
+    drawn_ = false;
+  }
+  // Keeps the worker's own stderr lines from landing inside the bar.
+  bool tty() const { return tty_; }
+
+ private:
+  bool tty_;
+  bool drawn_ = false;
+  int last_decile_ = -1;
+  int snapshots_ = 0;
+};
+
+std::string worker_path() {
+  if (const char* env = std::getenv("ERG_WORKER")) return env;
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path w = self.parent_path() / "erg-worker";
+    if (fs::exists(w)) return w.string();
+  }
+  return "erg-worker";
+}
+
+pid_t g_child = -1;
+extern "C" void forward_signal(int sig) {
+  if (g_child > 0) ::kill(g_child, sig);
+}
+
+int cmd_run(const std::vector<std::string>& args) {
+  erg::job::RunFlags flags;
+  try {
+    flags = erg::job::parse_run_flags(args);
+    if (flags.resume_dir.empty()) (void)erg::job::load_job_file(flags.job_path);  // fail fast, one place
+  } catch (const erg::job::SpecError& e) {
+    std::cerr << "erg: invalid job:\n" << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "erg run: " << e.what() << "\n";
+    return 2;
+  }
+  int fds[2];
+  if (::pipe(fds) != 0) {
+    std::perror("erg: pipe");
+    return 1;
+  }
+  const std::string worker = worker_path();
+  std::vector<std::string> wargs = {worker};
+  wargs.insert(wargs.end(), args.begin(), args.end());
+  wargs.push_back("--progress-fd");
+  wargs.push_back("3");
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    std::perror("erg: fork");
+    return 1;
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    if (fds[1] != 3) {
+      ::dup2(fds[1], 3);
+      ::close(fds[1]);
+    }
+    std::vector<char*> argv;
+    for (auto& a : wargs) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    ::execvp(argv[0], argv.data());
+    std::fprintf(stderr, "erg: cannot start %s: %s\n", worker.c_str(), std::strerror(errno));
+    _exit(127);
+  }
+  g_child = pid;
+  std::signal(SIGINT, forward_signal);
+  std::signal(SIGTERM, forward_signal);
+  ::close(fds[1]);
+  ProgressBar bar;
+  std::string pending;
+  char buf[4096];
+  std::string out_dir = flags.out_dir;
+  for (;;) {
+    const ssize_t n = ::read(fds[0], buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    pending.append(buf, static_cast<size_t>(n));
+    size_t nl;
+    while ((nl = pending.find('\n')) != std::string::npos) {
+      const auto ev = parse_flat_json(pending.substr(0, nl));
+      pending.erase(0, nl + 1);
+      const std::string& kind = ev.count("event") ? ev.at("event") : "";
+      auto num = [&](const char* k) { return ev.count(k) ? std::atof(ev.at(k).c_str()) : 0.0; };
+      if (kind == "progress") {
+        bar.update(static_cast<long long>(num("step")), static_cast<long long>(num("steps")), num("steps_per_s"),
+                   num("eta_s"));
+      } else if (kind == "snapshot") {
+        bar.snapshot();
+      } else if (kind == "start") {
+        std::cerr << "erg: " << ev.at("nx") << " x " << ev.at("ny") << " cells on the " << ev.at("backend")
+                  << " backend, steps " << ev.at("step") << " -> " << ev.at("steps") << ", output in " << out_dir
+                  << "\n";
+      } else if (kind == "done") {
+        bar.finish();
+        std::cerr << "erg: done at step " << ev.at("step") << "; exact sand total " << ev.at("sand_units_total")
+                  << " units on the ground + " << ev.at("airborne_units_total") << " airborne\n";
+      } else if (kind == "failed" || kind == "stopped") {
+        bar.finish();
+      }
+    }
+  }
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  bar.finish();
+  if (WIFEXITED(status)) {
+    const int code = WEXITSTATUS(status);
+    if (code == 0) std::cerr << "erg: snapshots in " << out_dir << "/snapshots, previews in " << out_dir << "/previews\n";
+    return code;
+  }
+  if (WIFSIGNALED(status)) {
+    std::cerr << "erg: worker killed by signal " << WTERMSIG(status) << "\n";
+    return 128 + WTERMSIG(status);
+  }
+  return 1;
+}
+
+int cmd_check(const std::vector<std::string>& args) {
+  if (args.size() != 1) {
+    std::cerr << "usage: erg check JOB.json\n";
+    return 2;
+  }
+  try {
+    std::cout << erg::job::to_json(erg::job::load_job_file(args[0])) << "\n";
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "erg: invalid job:\n" << e.what() << "\n";
+    return 2;
+  }
+}
+
+void usage() {
+  std::cerr << "erg " << ERG_VERSION << ": desert landscape simulation\n"
+            << "  erg run JOB.json --out DIR [--steps N] [--snapshot-every K] [--checkpoint-every C]\n"
+            << "                   [--threads T] [--backend auto|cpu|cuda]\n"
+            << "  erg run --resume DIR [--steps N] [...]\n"
+            << "  erg check JOB.json   validate a job; print it with all defaults\n"
+            << "  erg params           list every model parameter with its default and source\n";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    usage();
+    return 2;
+  }
+  const std::string cmd = argv[1];
+  const std::vector<std::string> rest(argv + 2, argv + argc);
+  if (cmd == "run") return cmd_run(rest);
+  if (cmd == "check") return cmd_check(rest);
+  if (cmd == "params") {
+    std::cout << erg::job::parameter_table_markdown();
+    return 0;
+  }
+  if (cmd == "version" || cmd == "--version") {
+    std::cout << "erg " << ERG_VERSION << "\n";
+    return 0;
+  }
+  if (cmd == "help" || cmd == "--help" || cmd == "-h") {
+    usage();
+    return 0;
+  }
+  std::cerr << "erg: unknown command '" << cmd << "'\n";
+  usage();
+  return 2;
+}

@@ -1,0 +1,43 @@
+#include "backend/backend.h"
+
+#include <iostream>
+
+#include "backend/cpu/cpu_backend.h"
+
+namespace erg {
+
+#ifdef ERG_HAVE_CUDA
+// backend/cuda/cuda_backend.cu
+std::unique_ptr<Backend> make_cuda_backend(const Model& model);
+bool cuda_runtime_has_device();
+#endif
+
+bool cuda_device_available() {
+#ifdef ERG_HAVE_CUDA
+  return cuda_runtime_has_device();
+#else
+  return false;
+#endif
+}
+
+std::unique_ptr<Backend> make_backend(BackendKind kind, const Model& model, int threads) {
+  if (kind == BackendKind::kCuda || kind == BackendKind::kAuto) {
+#ifdef ERG_HAVE_CUDA
+    if (cuda_device_available()) return make_cuda_backend(model);
+    if (kind == BackendKind::kCuda)
+      throw std::runtime_error("--backend cuda: no CUDA device is visible to this process");
+    static bool told = false;
+    if (!told) std::cerr << "erg: no CUDA device found, using the CPU backend\n";
+    told = true;
+#else
+    if (kind == BackendKind::kCuda)
+      throw std::runtime_error("--backend cuda: this build has no CUDA backend (nvcc was not found)");
+    static bool told = false;
+    if (!told) std::cerr << "erg: built without CUDA, using the CPU backend\n";
+    told = true;
+#endif
+  }
+  return std::make_unique<cpu::CpuBackend>(model, threads);
+}
+
+}  // namespace erg

@@ -1,0 +1,67 @@
+// A backend runs the stages of the step pipeline on one tile's data, on the
+// CPU (backend/cpu) or a CUDA GPU (backend/cuda). The order of the stages,
+// the wind regime and the events live in sim/simulation.cpp; the per-cell
+// math lives in stages/ and is shared by both backends.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/vec2.h"
+#include "sim/model.h"
+#include "sim/state.h"
+#include "stages/events.h"
+
+namespace erg {
+
+class Backend {
+ public:
+  virtual ~Backend() = default;
+  virtual std::string name() const = 0;
+
+  // Exact state in and out (host TileState <-> backend storage).
+  virtual void upload(const TileState& s) = 0;
+  virtual void download(TileState& s) = 0;
+  // Derived fields of the last step at the owned cells, row-major [ny][nx]:
+  // wind as (x, y) pairs, shadow, airborne sand in metres.
+  virtual void download_wind(std::vector<float>& wind_xy) = 0;
+  virtual void download_shadow(std::vector<float>& shadow) = 0;
+
+  // --- the stages, in pipeline order --------------------------------------
+  // Surface wind: venturi [P19 4.2] and multi-scale warping of the
+  // high-altitude wind a, at every owned cell.
+  virtual void wind(Vec2 a) = 0;
+  // Wind shadow [N24 eq. 4].
+  virtual void shadow() = 0;
+  // Lift, advection, deposition, bounces and abrasion; leaves the reptation
+  // strength for the next stage.
+  virtual void saltation(std::int64_t step) = 0;
+  // Reptation [N24 eqs. 6-8].
+  virtual void reptation() = 0;
+  // Sand avalanching [N24 eqs. 9-11]; returns the iterations that moved sand.
+  virtual int avalanche_sand() = 0;
+  // Bedrock avalanching at the bedrock repose angle.
+  virtual void avalanche_bedrock() = 0;
+
+  // --- timeline events ------------------------------------------------------
+  // Returns the exact change of the layer's total (units).
+  virtual total_t apply_sand_brush(const events::Brush& b) = 0;
+  virtual total_t apply_bedrock_brush(const events::Brush& b) = 0;
+  virtual void set_vegetation(const events::Region& r) = 0;
+
+  virtual Totals totals() = 0;
+  // Wait for queued device work (timing); no-op on the CPU.
+  virtual void synchronize() {}
+};
+
+enum class BackendKind { kAuto, kCpu, kCuda };
+
+// Creates the backend for a model. kAuto picks CUDA when a device exists and
+// falls back to the CPU otherwise, with a log line on stderr.
+std::unique_ptr<Backend> make_backend(BackendKind kind, const Model& model, int threads);
+
+// True when this build has the CUDA backend and the runtime sees a device.
+bool cuda_device_available();
+
+}  // namespace erg

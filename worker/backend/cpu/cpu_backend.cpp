@@ -1,0 +1,197 @@
+#include "backend/cpu/cpu_backend.h"
+
+#include <omp.h>
+
+#include <cstring>
+
+#include "stages/vegetation.h"
+
+namespace erg::cpu {
+
+template <class T>
+void fill_halo_periodic(Field<T>& f, int width) {
+  const TileGeom& g = f.geom();
+  const int w = width < g.halo ? width : g.halo;
+  if (w <= 0) return;
+  // Columns first, on owned rows; then whole ghost rows copy owned rows
+  // (which now carry their column ghosts). Modulo handles halos wider than
+  // the tile on tiny domains.
+  for (int y = 0; y < g.ny; ++y) {
+    T* r = f.row(y);
+    for (int x = -w; x < 0; ++x) r[x] = r[((x % g.nx) + g.nx) % g.nx];
+    for (int x = g.nx; x < g.nx + w; ++x) r[x] = r[x % g.nx];
+  }
+  for (int y = -w; y < g.ny + w; ++y) {
+    if (y >= 0 && y < g.ny) continue;
+    const int src = ((y % g.ny) + g.ny) % g.ny;
+    std::memcpy(f.row(y) - w, f.row(src) - w, sizeof(T) * static_cast<size_t>(g.nx + 2 * w));
+  }
+}
+
+template <class T>
+void fold_halo_periodic(Field<T>& f, int width) {
+  const TileGeom& g = f.geom();
+  const int w = width < g.halo ? width : g.halo;
+  for (int y = -w; y < g.ny + w; ++y) {
+    const bool ghost_row = y < 0 || y >= g.ny;
+    const int oy = ((y % g.ny) + g.ny) % g.ny;
+    for (int x = -w; x < g.nx + w; ++x) {
+      if (!ghost_row && x >= 0 && x < g.nx) {
+        x = g.nx - 1;  // skip the owned span
+        continue;
+      }
+      T& v = f(x, y);
+      if (v != T{}) {
+        f(((x % g.nx) + g.nx) % g.nx, oy) += v;
+        v = T{};
+      }
+    }
+  }
+}
+
+template void fill_halo_periodic(Field<units_t>&, int);
+template void fill_halo_periodic(Field<float>&, int);
+template void fold_halo_periodic(Field<units_t>&, int);
+
+CpuBackend::CpuBackend(const Model& model, int threads)
+    : m_(model), g_(model.tile), threads_(threads > 0 ? threads : omp_get_max_threads()),
+      smoother_(model.coarse) {
+  bedrock_.reset(g_);
+  sand_.reset(g_);
+  airborne_.reset(g_);
+  vegetation_.reset(g_);
+  resistance_.reset(g_);
+  height_m_.reset(g_);
+  wind_x_.reset(g_);
+  wind_y_.reset(g_);
+  shadow_.reset(g_);
+  landed_.reset(g_);
+  reptation_.reset(g_);
+  tan_l_.reset(g_);
+  sand_next_.reset(g_);
+  h_a_.reset(g_);
+  h_b_.reset(g_);
+  frac_.reset(g_);
+  out_.reset(g_);
+  coarse_h_.assign(static_cast<size_t>(m_.coarse.nx) * m_.coarse.ny, 0.0);
+}
+
+void CpuBackend::upload(const TileState& s) {
+  bedrock_ = s.bedrock;
+  sand_ = s.sand;
+  airborne_ = s.airborne;
+  vegetation_ = s.vegetation;
+  resistance_ = s.resistance;
+  update_repose();
+}
+
+void CpuBackend::download(TileState& s) {
+  s.geom = g_;
+  s.bedrock = bedrock_;
+  s.sand = sand_;
+  s.airborne = airborne_;
+  s.vegetation = vegetation_;
+  s.resistance = resistance_;
+}
+
+void CpuBackend::download_wind(std::vector<float>& wind_xy) {
+  wind_xy.resize(static_cast<size_t>(g_.nx) * g_.ny * 2);
+  for (int y = 0; y < g_.ny; ++y)
+    for (int x = 0; x < g_.nx; ++x) {
+      const size_t i = (static_cast<size_t>(y) * g_.nx + x) * 2;
+      wind_xy[i] = wind_x_(x, y);
+      wind_xy[i + 1] = wind_y_(x, y);
+    }
+}
+
+void CpuBackend::download_shadow(std::vector<float>& shadow) {
+  shadow.resize(static_cast<size_t>(g_.nx) * g_.ny);
+  for (int y = 0; y < g_.ny; ++y)
+    std::memcpy(&shadow[static_cast<size_t>(y) * g_.nx], shadow_.row(y), sizeof(float) * g_.nx);
+}
+
+void CpuBackend::update_repose() {
+#pragma omp parallel for num_threads(threads_) schedule(static)
+  for (int y = 0; y < g_.ny; ++y) {
+    const float* v = vegetation_.row(y);
+    float* t = tan_l_.row(y);
+    for (int x = 0; x < g_.nx; ++x)
+      t[x] = vegetation::repose_tan(v[x], m_.tan_l_sand, m_.tan_l_vegetated);
+  }
+  fill_halo_periodic(tan_l_, Model::kHaloStencil);
+}
+
+namespace {
+// Cell centre of local cell (x, y) in global metres.
+inline double centre_x(const TileGeom& g, int x) { return (g.x0 + x + 0.5) * g.cell_m; }
+inline double centre_y(const TileGeom& g, int y) { return (g.y0 + y + 0.5) * g.cell_m; }
+}  // namespace
+
+total_t CpuBackend::apply_sand_brush(const events::Brush& b) {
+  total_t change = 0;
+#pragma omp parallel for num_threads(threads_) schedule(static) reduction(+ : change)
+  for (int y = 0; y < g_.ny; ++y) {
+    units_t* s = sand_.row(y);
+    for (int x = 0; x < g_.nx; ++x) {
+      units_t d = events::brush_units(b, centre_x(g_, x), centre_y(g_, y));
+      if (d < -s[x]) d = -s[x];  // never below bare ground
+      s[x] += d;
+      change += d;
+    }
+  }
+  return change;
+}
+
+total_t CpuBackend::apply_bedrock_brush(const events::Brush& b) {
+  total_t change = 0;
+#pragma omp parallel for num_threads(threads_) schedule(static) reduction(+ : change)
+  for (int y = 0; y < g_.ny; ++y) {
+    units_t* r = bedrock_.row(y);
+    for (int x = 0; x < g_.nx; ++x) {
+      const units_t d = events::brush_units(b, centre_x(g_, x), centre_y(g_, y));
+      r[x] += d;
+      change += d;
+    }
+  }
+  return change;
+}
+
+void CpuBackend::set_vegetation(const events::Region& r) {
+#pragma omp parallel for num_threads(threads_) schedule(static)
+  for (int y = 0; y < g_.ny; ++y) {
+    float* v = vegetation_.row(y);
+    for (int x = 0; x < g_.nx; ++x)
+      if (events::in_region(r, centre_x(g_, x), centre_y(g_, y))) v[x] = r.value;
+  }
+  update_repose();
+}
+
+Totals CpuBackend::totals() {
+  Totals t;
+  // Per-row sums, then a fixed-order total (integers: order cannot matter,
+  // but this keeps the reduction simple and exact).
+  std::vector<total_t> rs(g_.ny), ra(g_.ny), rb(g_.ny);
+#pragma omp parallel for num_threads(threads_) schedule(static)
+  for (int y = 0; y < g_.ny; ++y) {
+    total_t s = 0, a = 0, b = 0;
+    const units_t* ps = sand_.row(y);
+    const units_t* pa = airborne_.row(y);
+    const units_t* pb = bedrock_.row(y);
+    for (int x = 0; x < g_.nx; ++x) {
+      s += ps[x];
+      a += pa[x];
+      b += pb[x];
+    }
+    rs[y] = s;
+    ra[y] = a;
+    rb[y] = b;
+  }
+  for (int y = 0; y < g_.ny; ++y) {
+    t.sand += rs[y];
+    t.airborne += ra[y];
+    t.bedrock += rb[y];
+  }
+  return t;
+}
+
+}  // namespace erg::cpu

@@ -1,0 +1,93 @@
+// The CPU backend: OpenMP threads over rows of padded fields. Every stage is
+// a gather or an integer scatter, so the result does not depend on the thread
+// count (DESIGN.md section 3); inner loops are written to vectorise.
+#pragma once
+
+#include <fftw3.h>
+
+#include <vector>
+
+#include "backend/backend.h"
+#include "core/field.h"
+
+namespace erg::cpu {
+
+// Periodic ghost cells of one tile that is the whole torus. (Between MPI
+// ranks the same ghosts are filled by halo exchange instead.)
+template <class T>
+void fill_halo_periodic(Field<T>& f, int width);
+// Adds every ghost cell into the owned cell it wraps onto, then zeroes the
+// ghosts (reverse halo accumulation of a scatter).
+template <class T>
+void fold_halo_periodic(Field<T>& f, int width);
+
+// Gaussian smoothing and gradients on the periodic coarse grid (FFTW, double,
+// FFTW_ESTIMATE plans so the algorithm never changes between runs).
+class CoarseSmoother {
+ public:
+  explicit CoarseSmoother(const CoarseGrid& c);
+  ~CoarseSmoother();
+  CoarseSmoother(const CoarseSmoother&) = delete;
+  CoarseSmoother& operator=(const CoarseSmoother&) = delete;
+  // heights: coarse mean heights (metres), [ny][nx]. Fills grad_x[s], grad_y[s]
+  // for scale s (0 large, 1 small) as float [ny][nx].
+  void gradients(const std::vector<double>& heights, std::vector<float> grad_x[2],
+                 std::vector<float> grad_y[2]);
+
+ private:
+  CoarseGrid c_;
+  double* real_ = nullptr;
+  fftw_complex* spectrum_ = nullptr;
+  fftw_complex* work_ = nullptr;
+  fftw_plan forward_{}, inverse_{};
+};
+
+class CpuBackend final : public Backend {
+ public:
+  CpuBackend(const Model& model, int threads);
+  std::string name() const override { return "cpu"; }
+  void upload(const TileState& s) override;
+  void download(TileState& s) override;
+  void download_wind(std::vector<float>& wind_xy) override;
+  void download_shadow(std::vector<float>& shadow) override;
+
+  void wind(Vec2 a) override;
+  void shadow() override;
+  void saltation(std::int64_t step) override;
+  void reptation() override;
+  int avalanche_sand() override;
+  void avalanche_bedrock() override;
+
+  total_t apply_sand_brush(const events::Brush& b) override;
+  total_t apply_bedrock_brush(const events::Brush& b) override;
+  void set_vegetation(const events::Region& r) override;
+  Totals totals() override;
+
+ private:
+  void update_repose();  // tan_l from vegetation
+  // One avalanching sweep structure shared by sand and bedrock (avalanching.cpp).
+  int avalanche(bool bedrock, int iterations);
+
+  Model m_;
+  TileGeom g_;
+  int threads_;
+  // exact state
+  Field<units_t> bedrock_, sand_, airborne_;
+  Field<float> vegetation_, resistance_;
+  // derived each step
+  Field<float> height_m_;   // b + s in metres, halo filled for the shadow march
+  Field<float> wind_x_, wind_y_, shadow_;
+  Field<units_t> landed_;   // saltation scatter target (halo for the hop reach)
+  Field<float> reptation_;  // s_r
+  Field<float> tan_l_;      // tan(repose(v)) * l for sand
+  // avalanching work buffers
+  Field<units_t> sand_next_;
+  Field<float> h_a_, h_b_, frac_;
+  Field<units_t> out_;
+  // wind warping
+  CoarseSmoother smoother_;
+  std::vector<double> coarse_h_;
+  std::vector<float> grad_x_[2], grad_y_[2];
+};
+
+}  // namespace erg::cpu

@@ -1,0 +1,106 @@
+// Saltation on the CPU (stages/saltation.h): lift, scatter of airborne sand
+// one hop downwind, reverse halo accumulation, deposition/bounce/abrasion.
+#include <algorithm>
+
+#include "backend/cpu/cpu_backend.h"
+#include "core/philox.h"
+#include "stages/saltation.h"
+
+namespace erg::cpu {
+
+void CpuBackend::saltation(std::int64_t step) {
+  const saltation::Params p = m_.saltation;
+  const std::uint64_t seed = m_.seed;
+  const auto ustep = static_cast<std::uint64_t>(step);
+
+  // (1) Lift into the airborne buffer (which holds last step's bounces).
+#pragma omp parallel for num_threads(threads_) schedule(static)
+  for (int y = 0; y < g_.ny; ++y) {
+    units_t* s = sand_.row(y);
+    units_t* air = airborne_.row(y);
+    const float* sh = shadow_.row(y);
+    const float* v = vegetation_.row(y);
+    if (p.stochastic) {
+      for (int x = 0; x < g_.nx; ++x) {
+        const float u = u01(random4(seed, ustep, g_.global_index(x, y), RandomStream::kLift).v[0]);
+        const units_t q = saltation::lift_stochastic(s[x], sh[x], v[x], u, p);
+        s[x] -= q;
+        air[x] += q;
+      }
+    } else {
+      for (int x = 0; x < g_.nx; ++x) {
+        const units_t q = saltation::lift_expected(s[x], sh[x], v[x], p);
+        s[x] -= q;
+        air[x] += q;
+      }
+    }
+  }
+
+  // (2) Scatter one hop downwind into `landed_` (owned + ghosts). Rows are cut
+  // into bands taller than twice the hop reach; even bands run in parallel,
+  // then odd bands, so no two threads ever add to the same cell. The sums are
+  // integers: the result is the same for any band or thread layout.
+  std::fill(landed_.data(), landed_.data() + landed_.size(), units_t{0});
+  const int reach = m_.halo_saltation();
+  const int band = std::max(2 * reach + 2, 8);
+  const int nbands = std::max(1, g_.ny / band);
+  for (int parity = 0; parity < 2; ++parity) {
+#pragma omp parallel for num_threads(threads_) schedule(dynamic, 1)
+    for (int bi = parity; bi < nbands; bi += 2) {
+      const int y_begin = bi * g_.ny / nbands, y_end = (bi + 1) * g_.ny / nbands;
+      for (int y = y_begin; y < y_end; ++y) {
+        units_t* air = airborne_.row(y);
+        const float* wx = wind_x_.row(y);
+        const float* wy = wind_y_.row(y);
+        for (int x = 0; x < g_.nx; ++x) {
+          const units_t a = air[x];
+          if (a == 0) continue;
+          air[x] = 0;
+          const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, p);
+          if (p.stochastic) {
+            const float u = u01(random4(seed, ustep, g_.global_index(x, y), RandomStream::kLanding).v[0]);
+            const int k = saltation::pick_corner(L.fx, L.fy, u);
+            landed_(L.x0 + (k & 1), L.y0 + (k >> 1)) += a;
+          } else {
+            units_t q[4];
+            saltation::split_bilinear(a, L.fx, L.fy, q);
+            landed_(L.x0, L.y0) += q[0];
+            landed_(L.x0 + 1, L.y0) += q[1];
+            landed_(L.x0, L.y0 + 1) += q[2];
+            landed_(L.x0 + 1, L.y0 + 1) += q[3];
+          }
+        }
+      }
+    }
+  }
+  // Sand that left the tile re-enters on the opposite side (the torus).
+  fold_halo_periodic(landed_, reach);
+
+  // (3) Deposit, bounce, abrade; record the reptation strength.
+#pragma omp parallel for num_threads(threads_) schedule(static)
+  for (int y = 0; y < g_.ny; ++y) {
+    const units_t* in = landed_.row(y);
+    units_t* s = sand_.row(y);
+    units_t* b = bedrock_.row(y);
+    units_t* air = airborne_.row(y);
+    const float* sh = shadow_.row(y);
+    const float* v = vegetation_.row(y);
+    const float* r = resistance_.row(y);
+    const float* wx = wind_x_.row(y);
+    const float* wy = wind_y_.row(y);
+    float* sr = reptation_.row(y);
+    for (int x = 0; x < g_.nx; ++x) {
+      float u = 0.0f;
+      if (p.stochastic && in[x] > 0)
+        u = u01(random4(seed, ustep, g_.global_index(x, y), RandomStream::kDeposit).v[0]);
+      const saltation::Impact im =
+          saltation::impact(in[x], s[x], sh[x], v[x], r[x], length(Vec2{wx[x], wy[x]}), u, p);
+      s[x] += im.deposited + im.abraded;
+      b[x] -= im.abraded;
+      air[x] = im.bounced;
+      sr[x] = im.reptation_m;
+    }
+  }
+}
+
+}  // namespace erg::cpu

@@ -1,0 +1,124 @@
+// Surface wind on the CPU: venturi and multi-scale warping
+// (stages/venturi.h, stages/wind_warping.h).
+#include <cmath>
+
+#include "backend/cpu/cpu_backend.h"
+#include "stages/venturi.h"
+#include "stages/wind_warping.h"
+
+namespace erg::cpu {
+
+namespace {
+constexpr double kTwoPi = 6.283185307179586;
+}
+
+CoarseSmoother::CoarseSmoother(const CoarseGrid& c) : c_(c) {
+  const size_t n = static_cast<size_t>(c.nx) * c.ny;
+  const size_t nc = static_cast<size_t>(c.nx / 2 + 1) * c.ny;
+  real_ = fftw_alloc_real(n);
+  spectrum_ = fftw_alloc_complex(nc);
+  work_ = fftw_alloc_complex(nc);
+  // FFTW's planner is not thread-safe; plans are made once, here.
+  forward_ = fftw_plan_dft_r2c_2d(c.ny, c.nx, real_, spectrum_, FFTW_ESTIMATE);
+  inverse_ = fftw_plan_dft_c2r_2d(c.ny, c.nx, work_, real_, FFTW_ESTIMATE);
+}
+
+CoarseSmoother::~CoarseSmoother() {
+  fftw_destroy_plan(forward_);
+  fftw_destroy_plan(inverse_);
+  fftw_free(real_);
+  fftw_free(spectrum_);
+  fftw_free(work_);
+}
+
+void CoarseSmoother::gradients(const std::vector<double>& heights, std::vector<float> grad_x[2],
+                               std::vector<float> grad_y[2]) {
+  const int nx = c_.nx, ny = c_.ny, hx = nx / 2 + 1;
+  const size_t n = static_cast<size_t>(nx) * ny;
+  std::copy(heights.begin(), heights.end(), real_);
+  fftw_execute(forward_);
+  const double norm = 1.0 / static_cast<double>(n);
+  for (int s = 0; s < 2; ++s) {
+    for (int axis = 0; axis < 2; ++axis) {
+      // d/dx <-> 2 pi i k_x at physical wave numbers (cycles per metre); the
+      // Nyquist mode of the differentiated axis has no sign and is dropped.
+      for (int j = 0; j < ny; ++j) {
+        const int mj = j <= ny / 2 ? j : j - ny;
+        const double ky = mj / c_.ly_m;
+        for (int i = 0; i < hx; ++i) {
+          const double kx = i / c_.lx_m;
+          const size_t k = static_cast<size_t>(j) * hx + i;
+          const double gauss = wind_warping::gaussian_transfer(kx, ky, c_.sigma_m[s]) * norm;
+          double factor;
+          bool nyquist;
+          if (axis == 0) {
+            factor = kTwoPi * kx;
+            nyquist = (nx % 2 == 0) && i == nx / 2;
+          } else {
+            factor = kTwoPi * ky;
+            nyquist = (ny % 2 == 0) && j == ny / 2;
+          }
+          const double a = spectrum_[k][0] * gauss, b = spectrum_[k][1] * gauss;
+          // (a + i b) * (i factor) = -b factor + i a factor
+          work_[k][0] = nyquist ? 0.0 : -b * factor;
+          work_[k][1] = nyquist ? 0.0 : a * factor;
+        }
+      }
+      fftw_execute(inverse_);
+      std::vector<float>& out = axis == 0 ? grad_x[s] : grad_y[s];
+      out.resize(n);
+      for (size_t k = 0; k < n; ++k) out[k] = static_cast<float>(real_[k]);
+    }
+  }
+}
+
+void CpuBackend::wind(Vec2 a) {
+  const CoarseGrid& c = m_.coarse;
+  // Heights in metres (owned + the ghosts the shadow march reads).
+#pragma omp parallel for num_threads(threads_) schedule(static)
+  for (int y = 0; y < g_.ny; ++y) {
+    const units_t* b = bedrock_.row(y);
+    const units_t* s = sand_.row(y);
+    float* h = height_m_.row(y);
+    for (int x = 0; x < g_.nx; ++x) h[x] = units_to_m(b[x] + s[x]);
+  }
+  fill_halo_periodic(height_m_, m_.halo_shadow());
+
+  // Exact block sums into the coarse grid. This tile is the whole domain; in
+  // a tiled run the same integer sums are added across ranks.
+#pragma omp parallel for num_threads(threads_) schedule(static)
+  for (int J = 0; J < c.ny; ++J)
+    for (int I = 0; I < c.nx; ++I) {
+      total_t sum = 0;
+      for (int y = J * c.cy; y < (J + 1) * c.cy; ++y) {
+        const units_t* b = bedrock_.row(y);
+        const units_t* s = sand_.row(y);
+        for (int x = I * c.cx; x < (I + 1) * c.cx; ++x) sum += b[x] + s[x];
+      }
+      coarse_h_[static_cast<size_t>(J) * c.nx + I] =
+          static_cast<double>(sum) * kUnitM / (static_cast<double>(c.cx) * c.cy);
+    }
+  smoother_.gradients(coarse_h_, grad_x_, grad_y_);
+
+  const float k = m_.venturi_k;
+  const wind_warping::Params wp = m_.warp;
+#pragma omp parallel for num_threads(threads_) schedule(static)
+  for (int y = 0; y < g_.ny; ++y) {
+    const float* h = height_m_.row(y);
+    float* wx = wind_x_.row(y);
+    float* wy = wind_y_.row(y);
+    for (int x = 0; x < g_.nx; ++x) {
+      const int gx = g_.x0 + x, gy = g_.y0 + y;
+      const Vec2 v = venturi::wind(a, h[x], k);
+      const Vec2 gl{wind_warping::sample_coarse(grad_x_[0].data(), c.nx, c.ny, c.cx, c.cy, gx, gy),
+                    wind_warping::sample_coarse(grad_y_[0].data(), c.nx, c.ny, c.cx, c.cy, gx, gy)};
+      const Vec2 gs{wind_warping::sample_coarse(grad_x_[1].data(), c.nx, c.ny, c.cx, c.cy, gx, gy),
+                    wind_warping::sample_coarse(grad_y_[1].data(), c.nx, c.ny, c.cx, c.cy, gx, gy)};
+      const Vec2 w = wind_warping::warp(v, gl, gs, wp);
+      wx[x] = w.x;
+      wy[x] = w.y;
+    }
+  }
+}
+
+}  // namespace erg::cpu

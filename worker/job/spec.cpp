@@ -1,0 +1,413 @@
+#include "job/spec.h"
+
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/util/json_util.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "io/io.h"
+
+namespace erg::job {
+
+namespace pb = google::protobuf;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string join_lines(const std::vector<std::string>& v) {
+  std::string s;
+  for (const auto& p : v) s += (s.empty() ? "" : "\n") + p;
+  return s;
+}
+
+// Shortest text that reads back as the same double.
+std::string num(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  std::ostringstream o;
+  o.precision(17);
+  o << v;
+  std::string s = o.str();
+  for (int p = 1; p <= 17; ++p) {
+    std::ostringstream t;
+    t.precision(p);
+    t << v;
+    if (std::stod(t.str()) == v) return t.str();
+  }
+  return s;
+}
+
+const erg::v1::FieldSpec& spec_of(const pb::FieldDescriptor* f) {
+  return f->options().GetExtension(erg::v1::spec);
+}
+
+bool is_numeric(const pb::FieldDescriptor* f) {
+  switch (f->cpp_type()) {
+    case pb::FieldDescriptor::CPPTYPE_DOUBLE:
+    case pb::FieldDescriptor::CPPTYPE_FLOAT:
+    case pb::FieldDescriptor::CPPTYPE_INT32:
+    case pb::FieldDescriptor::CPPTYPE_INT64:
+    case pb::FieldDescriptor::CPPTYPE_UINT32:
+    case pb::FieldDescriptor::CPPTYPE_UINT64:
+      return true;
+    default:
+      return false;
+  }
+}
+
+double get_number(const pb::Message& m, const pb::FieldDescriptor* f) {
+  const pb::Reflection* r = m.GetReflection();
+  switch (f->cpp_type()) {
+    case pb::FieldDescriptor::CPPTYPE_DOUBLE: return r->GetDouble(m, f);
+    case pb::FieldDescriptor::CPPTYPE_FLOAT: return r->GetFloat(m, f);
+    case pb::FieldDescriptor::CPPTYPE_INT32: return r->GetInt32(m, f);
+    case pb::FieldDescriptor::CPPTYPE_INT64: return static_cast<double>(r->GetInt64(m, f));
+    case pb::FieldDescriptor::CPPTYPE_UINT32: return r->GetUInt32(m, f);
+    case pb::FieldDescriptor::CPPTYPE_UINT64: return static_cast<double>(r->GetUInt64(m, f));
+    default: return 0;
+  }
+}
+
+void set_default(pb::Message& m, const pb::FieldDescriptor* f, double v) {
+  const pb::Reflection* r = m.GetReflection();
+  switch (f->cpp_type()) {
+    case pb::FieldDescriptor::CPPTYPE_DOUBLE: r->SetDouble(&m, f, v); break;
+    case pb::FieldDescriptor::CPPTYPE_FLOAT: r->SetFloat(&m, f, static_cast<float>(v)); break;
+    case pb::FieldDescriptor::CPPTYPE_INT32: r->SetInt32(&m, f, static_cast<int32_t>(v)); break;
+    case pb::FieldDescriptor::CPPTYPE_INT64: r->SetInt64(&m, f, static_cast<int64_t>(v)); break;
+    case pb::FieldDescriptor::CPPTYPE_UINT32: r->SetUInt32(&m, f, static_cast<uint32_t>(v)); break;
+    case pb::FieldDescriptor::CPPTYPE_UINT64: r->SetUInt64(&m, f, static_cast<uint64_t>(v)); break;
+    case pb::FieldDescriptor::CPPTYPE_BOOL: r->SetBool(&m, f, v != 0); break;
+    default: break;
+  }
+}
+
+void defaults_rec(pb::Message& m) {
+  const pb::Descriptor* d = m.GetDescriptor();
+  const pb::Reflection* r = m.GetReflection();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const pb::FieldDescriptor* f = d->field(i);
+    if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE) {
+      if (f->is_repeated()) {
+        for (int k = 0; k < r->FieldSize(m, f); ++k) defaults_rec(*r->MutableRepeatedMessage(&m, f, k));
+      } else if (r->HasField(m, f)) {
+        // Only messages the user wrote: the presence of a layer source or a
+        // wind regime is meaningful and must not be invented here.
+        defaults_rec(*r->MutableMessage(&m, f));
+      }
+      continue;
+    }
+    if (f->is_repeated() || !f->has_presence()) continue;
+    const auto& s = spec_of(f);
+    if (s.has_default_value() && !r->HasField(m, f)) set_default(m, f, s.default_value());
+  }
+}
+
+std::string range_text(const erg::v1::FieldSpec& s) {
+  // Built by appending: GCC 12 warns falsely (-Wrestrict) on "(" + string.
+  std::string t;
+  if (s.has_min()) t.append(s.min_exclusive() ? "(" : "[").append(num(s.min()));
+  else t.append("(-inf");
+  t.append(", ");
+  if (s.has_max()) t.append(num(s.max())).append(s.max_exclusive() ? ")" : "]");
+  else t.append("inf)");
+  if (!s.unit().empty()) t += " " + s.unit();
+  return t;
+}
+
+void validate_rec(const pb::Message& m, const std::string& path, std::vector<std::string>& out) {
+  const pb::Descriptor* d = m.GetDescriptor();
+  const pb::Reflection* r = m.GetReflection();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const pb::FieldDescriptor* f = d->field(i);
+    const std::string name = path.empty() ? f->name() : path + "." + f->name();
+    if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE) {
+      if (f->is_repeated()) {
+        for (int k = 0; k < r->FieldSize(m, f); ++k)
+          validate_rec(r->GetRepeatedMessage(m, f, k), name + "[" + std::to_string(k) + "]", out);
+      } else if (r->HasField(m, f)) {
+        validate_rec(r->GetMessage(m, f), name, out);
+      }
+      continue;
+    }
+    if (f->is_repeated() || !is_numeric(f)) continue;
+    const auto& s = spec_of(f);
+    const bool present = !f->has_presence() || r->HasField(m, f);
+    if (!present) {
+      if (s.required())
+        out.push_back(name + " is required" + (s.doc().empty() ? "" : " (" + s.doc() + ")") +
+                      "; allowed " + range_text(s));
+      continue;
+    }
+    const double v = get_number(m, f);
+    const bool bad = !std::isfinite(v) || (s.has_min() && (s.min_exclusive() ? v <= s.min() : v < s.min())) ||
+                     (s.has_max() && (s.max_exclusive() ? v >= s.max() : v > s.max()));
+    if (bad) out.push_back(name + " = " + num(v) + " is out of range; allowed " + range_text(s));
+  }
+}
+
+// ---- checks that span several fields ---------------------------------------
+
+void check_wind(const erg::v1::WindRegime& w, const std::string& path, std::vector<std::string>& out) {
+  using R = erg::v1::WindRegime;
+  switch (w.regime_case()) {
+    case R::REGIME_NOT_SET:
+      out.push_back(path + " has no regime; set one of constant, rose, series, bidirectional");
+      break;
+    case R::kRose: {
+      const auto& rose = w.rose();
+      if (rose.entries_size() == 0) {
+        out.push_back(path + ".rose.entries is empty; a wind rose needs at least one entry");
+        break;
+      }
+      double sum = 0;
+      for (const auto& e : rose.entries()) sum += e.probability();
+      if (std::isfinite(sum) && std::fabs(sum - 1.0) > 1e-6)
+        out.push_back(path + ".rose.entries[*].probability sum to " + num(sum) +
+                      "; they must sum to 1 (within 1e-6)");
+      break;
+    }
+    case R::kSeries: {
+      const auto& s = w.series();
+      if (s.keyframes_size() == 0) {
+        out.push_back(path + ".series.keyframes is empty; a wind series needs at least one keyframe");
+        break;
+      }
+      for (int k = 1; k < s.keyframes_size(); ++k)
+        if (s.keyframes(k).step() <= s.keyframes(k - 1).step())
+          out.push_back(path + ".series.keyframes[" + std::to_string(k) + "].step = " +
+                        std::to_string(s.keyframes(k).step()) +
+                        " must be greater than the previous keyframe's step " +
+                        std::to_string(s.keyframes(k - 1).step()));
+      if (s.period_steps() > 0 && s.keyframes(s.keyframes_size() - 1).step() >= s.period_steps())
+        out.push_back(path + ".series.period_steps = " + std::to_string(s.period_steps()) +
+                      " must exceed the last keyframe's step " +
+                      std::to_string(s.keyframes(s.keyframes_size() - 1).step()));
+      break;
+    }
+    default:
+      break;
+  }
+}
+
+void check_layer(const erg::v1::Layer& layer, const std::string& path, const JobSpec& spec,
+                 const std::string& base_dir, std::vector<std::string>& out) {
+  if (layer.has_uniform() && layer.uniform().min() > layer.uniform().max())
+    out.push_back(path + ".uniform.min = " + num(layer.uniform().min()) + " exceeds max = " +
+                  num(layer.uniform().max()) + "; allowed min <= max");
+  if (!layer.has_map()) return;
+  const auto& map = layer.map();
+  const std::string mp = path + ".map";
+  if (map.path().empty()) {
+    out.push_back(mp + ".path is empty; name an HDF5 or 16-bit PNG file");
+    return;
+  }
+  const std::string file = resolve_path(map.path(), base_dir);
+  if (!fs::exists(file)) {
+    out.push_back(mp + ".path = \"" + map.path() + "\": file not found (looked at " + file + ")");
+    return;
+  }
+  auto format = map.format();
+  if (format == erg::v1::MapFile::FORMAT_UNSPECIFIED) {
+    std::string ext = fs::path(file).extension().string();
+    for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == ".h5" || ext == ".hdf5" || ext == ".he5") format = erg::v1::MapFile::HDF5;
+    else if (ext == ".png") format = erg::v1::MapFile::PNG16;
+    else {
+      out.push_back(mp + ".format is unset and the extension of \"" + map.path() +
+                    "\" is not .h5/.hdf5/.png; set format to HDF5 or PNG16");
+      return;
+    }
+  }
+  try {
+    io::Map m = format == erg::v1::MapFile::HDF5
+                    ? io::read_hdf5_map(file, map.dataset().empty() ? "/data" : map.dataset())
+                    : io::read_png_map(file);
+    if (m.nx != spec.domain().nx() || m.ny != spec.domain().ny())
+      out.push_back(mp + ".path = \"" + map.path() + "\" is " + std::to_string(m.nx) + " x " +
+                    std::to_string(m.ny) + " cells; the domain is " +
+                    std::to_string(spec.domain().nx()) + " x " + std::to_string(spec.domain().ny()) +
+                    " (nx x ny)");
+    for (double v : m.values)
+      if (!std::isfinite(v)) {
+        out.push_back(mp + ".path = \"" + map.path() + "\" contains a non-finite value");
+        break;
+      }
+  } catch (const std::exception& e) {
+    out.push_back(mp + ".path = \"" + map.path() + "\" cannot be read: " + e.what());
+  }
+}
+
+}  // namespace
+
+SpecError::SpecError(std::vector<std::string> problems)
+    : std::runtime_error(join_lines(problems)), problems_(std::move(problems)) {}
+
+JobSpec parse_json(const std::string& text, const std::string& origin) {
+  JobSpec spec;
+  pb::util::JsonParseOptions opt;
+  opt.ignore_unknown_fields = false;
+  opt.case_insensitive_enum_parsing = true;
+  auto st = pb::util::JsonStringToMessage(text, &spec, opt);
+  if (!st.ok()) {
+    std::string msg(st.message());
+    throw SpecError({origin + ": not a valid job spec: " + msg});
+  }
+  return spec;
+}
+
+void apply_defaults(JobSpec& spec) {
+  // Groups that always exist, so their parameters get their defaults even
+  // when the job does not mention them.
+  spec.mutable_domain();
+  spec.mutable_run();
+  spec.mutable_model();
+  spec.mutable_layers();
+  defaults_rec(spec);
+  if (spec.transport() == JobSpec::TRANSPORT_UNSPECIFIED) spec.set_transport(JobSpec::EXPECTED);
+}
+
+std::vector<std::string> validate(const JobSpec& spec, const std::string& base_dir) {
+  std::vector<std::string> out;
+  validate_rec(spec, "", out);
+  if (!out.empty()) return out;  // later checks assume the fields are in range
+
+  const auto& d = spec.domain();
+  const auto& m = spec.model();
+  const double l = d.cell_size_m();
+
+  if (!spec.has_wind()) out.push_back("wind is required: the high-altitude wind regime");
+  else check_wind(spec.wind(), "wind", out);
+
+  // The hop is bounded by the saltation halo (DESIGN.md section 4).
+  constexpr double kMaxHopCells = 16;
+  if (m.max_hop_m() > kMaxHopCells * l)
+    out.push_back("model.max_hop_m = " + num(m.max_hop_m()) + " m is " + num(m.max_hop_m() / l) +
+                  " cells at domain.cell_size_m = " + num(l) + " m; a hop may span at most " +
+                  num(kMaxHopCells) + " cells, so allowed max_hop_m <= " + num(kMaxHopCells * l) + " m");
+  constexpr double kMaxShadowCells = 128;
+  if (m.shadow_radius_m() > kMaxShadowCells * l)
+    out.push_back("model.shadow_radius_m = " + num(m.shadow_radius_m()) + " m is " +
+                  num(m.shadow_radius_m() / l) + " cells at domain.cell_size_m = " + num(l) +
+                  " m; allowed shadow_radius_m <= " + num(kMaxShadowCells * l) + " m (128 cells)");
+  if (m.shadow_angle_min_deg() >= m.shadow_angle_max_deg())
+    out.push_back("model.shadow_angle_min_deg = " + num(m.shadow_angle_min_deg()) +
+                  " must be below model.shadow_angle_max_deg = " + num(m.shadow_angle_max_deg()));
+  if (m.warp_large_weight() + m.warp_small_weight() <= 0)
+    out.push_back("model.warp_large_weight + model.warp_small_weight = 0; allowed > 0");
+
+  const auto& layers = spec.layers();
+  check_layer(layers.bedrock(), "layers.bedrock", spec, base_dir, out);
+  check_layer(layers.sand(), "layers.sand", spec, base_dir, out);
+  check_layer(layers.vegetation(), "layers.vegetation", spec, base_dir, out);
+  check_layer(layers.resistance(), "layers.resistance", spec, base_dir, out);
+
+  for (int k = 0; k < spec.events_size(); ++k) {
+    const auto& e = spec.events(k);
+    const std::string p = "events[" + std::to_string(k) + "]";
+    switch (e.action_case()) {
+      case erg::v1::Event::ACTION_NOT_SET:
+        out.push_back(p + " has no action; set one of sand, bedrock, vegetation, wind");
+        break;
+      case erg::v1::Event::kWind:
+        check_wind(e.wind(), p + ".wind", out);
+        break;
+      case erg::v1::Event::kVegetation: {
+        const auto& v = e.vegetation();
+        const bool rect = v.has_width_m() || v.has_height_m();
+        const bool disk = v.has_radius_m();
+        if (rect == disk)
+          out.push_back(p + ".vegetation must give either width_m and height_m (a rectangle) or "
+                            "radius_m (a disk)");
+        else if (rect && !(v.has_width_m() && v.has_height_m()))
+          out.push_back(p + ".vegetation rectangle needs both width_m and height_m");
+        break;
+      }
+      case erg::v1::Event::kSand:
+      case erg::v1::Event::kBedrock: {
+        const auto& b = e.action_case() == erg::v1::Event::kSand ? e.sand() : e.bedrock();
+        if (b.falloff_m() > b.radius_m())
+          out.push_back(p + (e.action_case() == erg::v1::Event::kSand ? ".sand" : ".bedrock") +
+                        ".falloff_m = " + num(b.falloff_m()) + " exceeds radius_m = " +
+                        num(b.radius_m()) + "; allowed [0, radius_m]");
+        break;
+      }
+    }
+  }
+  return out;
+}
+
+std::string base_dir_of(const std::string& job_path) {
+  fs::path p(job_path);
+  return p.has_parent_path() ? p.parent_path().string() : std::string(".");
+}
+
+std::string resolve_path(const std::string& path, const std::string& base_dir) {
+  fs::path p(path);
+  if (p.is_absolute()) return p.string();
+  return (fs::path(base_dir) / p).lexically_normal().string();
+}
+
+JobSpec load_job_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SpecError({path + ": cannot open the job file"});
+  std::stringstream ss;
+  ss << in.rdbuf();
+  JobSpec spec = parse_json(ss.str(), path);
+  apply_defaults(spec);
+  auto problems = validate(spec, base_dir_of(path));
+  if (!problems.empty()) {
+    for (auto& p : problems) p = path + ": " + p;
+    throw SpecError(problems);
+  }
+  return spec;
+}
+
+std::string to_json(const JobSpec& spec) {
+  std::string out;
+  pb::util::JsonPrintOptions opt;
+  opt.add_whitespace = true;
+  opt.preserve_proto_field_names = true;
+  (void)pb::util::MessageToJsonString(spec, &out, opt);
+  return out;
+}
+
+void apply_overrides(JobSpec& spec, const Overrides& o) {
+  if (o.steps >= 0) spec.mutable_run()->set_steps(o.steps);
+  if (o.snapshot_every >= 0) spec.mutable_run()->set_snapshot_every(o.snapshot_every);
+  if (o.checkpoint_every >= 0) spec.mutable_run()->set_checkpoint_every(o.checkpoint_every);
+}
+
+namespace {
+void table_rec(const pb::Descriptor* d, const std::string& path, std::string& out, int depth) {
+  if (depth > 4) return;
+  for (int i = 0; i < d->field_count(); ++i) {
+    const pb::FieldDescriptor* f = d->field(i);
+    const std::string name = path.empty() ? f->name() : path + "." + f->name();
+    if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE) {
+      if (f->message_type()->full_name() == "erg.v1.WindRegime" && !path.empty()) continue;
+      table_rec(f->message_type(), name + (f->is_repeated() ? "[]" : ""), out, depth + 1);
+      continue;
+    }
+    if (!f->options().HasExtension(erg::v1::spec)) continue;
+    const auto& s = spec_of(f);
+    std::string def = s.has_default_value() ? num(s.default_value()) : (s.required() ? "required" : "-");
+    if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_BOOL && s.has_default_value())
+      def = s.default_value() != 0 ? "true" : "false";
+    std::string range = is_numeric(f) ? range_text(s) : "";
+    std::string note = s.source().empty() ? s.doc() : (s.doc().empty() ? s.source() : s.doc() + " (" + s.source() + ")");
+    out += "| `" + name + "` | " + def + " | " + range + " | " + note + " |\n";
+  }
+}
+}  // namespace
+
+std::string parameter_table_markdown() {
+  std::string out = "| field | default | allowed | meaning (source) |\n|---|---|---|---|\n";
+  table_rec(JobSpec::descriptor(), "", out, 0);
+  return out;
+}
+
+}  // namespace erg::job

@@ -1,0 +1,91 @@
+#include "sim/model.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/units.h"
+
+namespace erg {
+
+namespace {
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+}
+
+int Model::halo_saltation() const {
+  return static_cast<int>(std::ceil(saltation.max_hop_m / tile.cell_m)) + 2;
+}
+
+int coarse_factor(int n, double cell_m, double max_m) {
+  int best = 1;
+  for (int c = 1; c <= n; ++c)
+    if (n % c == 0 && c * cell_m <= max_m) best = c;
+  return best;
+}
+
+Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0) {
+  const auto& m = spec.model();
+  const double l = spec.domain().cell_size_m();
+  Model md;
+  md.seed = static_cast<std::uint64_t>(spec.seed());
+  md.stochastic = spec.transport() == erg::v1::JobSpec::STOCHASTIC;
+  md.venturi_k = static_cast<float>(m.venturi_k());
+  md.warp.weight[0] = static_cast<float>(m.warp_large_weight());
+  md.warp.weight[1] = static_cast<float>(m.warp_small_weight());
+  md.warp.deviation[0] = static_cast<float>(m.warp_large_deviation());
+  md.warp.deviation[1] = static_cast<float>(m.warp_small_deviation());
+  md.warp.gradient_scale = static_cast<float>(m.warp_gradient_scale());
+
+  const int gnx = static_cast<int>(spec.domain().nx()), gny = static_cast<int>(spec.domain().ny());
+  auto& c = md.coarse;
+  // "We use r = 2 sigma" [N24 3.3].
+  c.sigma_m[0] = 0.5 * m.warp_large_radius_m();
+  c.sigma_m[1] = 0.5 * m.warp_small_radius_m();
+  const double max_coarse_m = 0.25 * std::min(c.sigma_m[0], c.sigma_m[1]);
+  c.cx = coarse_factor(gnx, l, max_coarse_m);
+  c.cy = coarse_factor(gny, l, max_coarse_m);
+  c.nx = gnx / c.cx;
+  c.ny = gny / c.cy;
+  c.lx_m = gnx * l;
+  c.ly_m = gny * l;
+
+  md.shadow.steps = static_cast<int>(std::ceil(m.shadow_radius_m() / l - 1e-9));
+  md.shadow.cell_m = static_cast<float>(l);
+  md.shadow.tan_min = static_cast<float>(std::tan(m.shadow_angle_min_deg() * kDeg));
+  md.shadow.tan_max = static_cast<float>(std::tan(m.shadow_angle_max_deg() * kDeg));
+
+  auto& s = md.saltation;
+  s.slab_units = static_cast<float>(m.slab_m() * kUnitsPerM);
+  s.hop_time_s = static_cast<float>(m.hop_time_s());
+  s.max_hop_m = static_cast<float>(m.max_hop_m());
+  s.cell_m = static_cast<float>(l);
+  s.deposit_on_sand = static_cast<float>(m.deposit_on_sand());
+  s.deposit_on_bedrock = static_cast<float>(m.deposit_on_bedrock());
+  s.abrasion_k = static_cast<float>(m.abrasion_k());
+  s.abrasion_threshold = m_to_units(m.abrasion_sand_threshold_m());
+  s.stochastic = md.stochastic;
+
+  md.reptation_k = static_cast<float>(m.reptation_k());
+  md.tan_l_sand = static_cast<float>(std::tan(m.repose_deg() * kDeg) * l);
+  md.tan_l_vegetated = static_cast<float>(std::tan(m.repose_vegetated_deg() * kDeg) * l);
+  md.tan_l_bedrock = static_cast<float>(std::tan(m.bedrock_repose_deg() * kDeg) * l);
+  md.avalanche_iterations = static_cast<int>(m.avalanche_iterations());
+  md.kc = static_cast<float>(m.avalanche_kc());
+  md.kc_damped = static_cast<float>(m.avalanche_kc_damped());
+  md.bedrock_iterations = static_cast<int>(m.bedrock_avalanche_iterations());
+  md.bedrock_to_sand = m.bedrock_to_sand();
+  md.time_step_days = m.time_step_days();
+
+  TileGeom& t = md.tile;
+  t.nx = nx;
+  t.ny = ny;
+  t.x0 = x0;
+  t.y0 = y0;
+  t.gnx = gnx;
+  t.gny = gny;
+  t.cell_m = static_cast<float>(l);
+  t.halo = std::max({md.halo_shadow(), md.halo_saltation(), 2});
+  t.pitch = padded_pitch(nx, t.halo);
+  return md;
+}
+
+}  // namespace erg

@@ -1,0 +1,56 @@
+// Everything a step needs from the job spec, resolved once into plain values
+// (radians to tangents, metres to units and cells) so kernels receive small
+// POD structs by value.
+#pragma once
+
+#include <cstdint>
+
+#include "core/grid.h"
+#include "erg/v1/job.pb.h"
+#include "stages/saltation.h"
+#include "stages/wind_shadow.h"
+#include "stages/wind_warping.h"
+
+namespace erg {
+
+// The coarse grid of the wind-warping smoothing (stages/wind_warping.h).
+struct CoarseGrid {
+  int cx = 1, cy = 1;    // fine cells per coarse cell along x, y
+  int nx = 0, ny = 0;    // coarse cells
+  double lx_m = 0, ly_m = 0;  // domain extent
+  double sigma_m[2] = {0, 0};  // Gaussian sigma of the large and small scales
+};
+
+struct Model {
+  TileGeom tile;  // the tile this process owns, with its halo
+  std::uint64_t seed = 0;
+  bool stochastic = false;
+  float venturi_k = 0;
+  wind_warping::Params warp{};
+  CoarseGrid coarse;
+  wind_shadow::Params shadow{};
+  saltation::Params saltation{};
+  float reptation_k = 0;
+  // tan(repose) * l: metres of height difference allowed per cell of distance.
+  float tan_l_sand = 0, tan_l_vegetated = 0, tan_l_bedrock = 0;
+  int avalanche_iterations = 0;
+  float kc = 1, kc_damped = 0.5f;
+  int bedrock_iterations = 0;
+  bool bedrock_to_sand = false;
+  double time_step_days = 0;
+
+  // Ghost cells each stage reads (DESIGN.md section 4).
+  int halo_shadow() const { return shadow.steps + 2; }
+  int halo_saltation() const;  // hop reach + bilinear footprint
+  static constexpr int kHaloStencil = 1;  // reptation, avalanching
+};
+
+// Resolves a defaults-filled, validated spec for a tile of `nx x ny` owned
+// cells at global offset (x0, y0); the halo is chosen to cover every stage.
+Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0);
+
+// Coarse factor along one axis: the largest divisor of n whose coarse cells
+// are at most `max_m` wide (at least 1).
+int coarse_factor(int n, double cell_m, double max_m);
+
+}  // namespace erg

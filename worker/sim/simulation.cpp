@@ -1,0 +1,213 @@
+#include "sim/simulation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "init/layers.h"
+#include "job/spec.h"
+#include "wind/regime.h"
+
+namespace erg {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+template <class T, class F>
+void fill_owned(Field<T>& f, const std::vector<double>& v, F convert) {
+  const TileGeom& g = f.geom();
+  for (int y = 0; y < g.ny; ++y)
+    for (int x = 0; x < g.nx; ++x) f(x, y) = convert(v[static_cast<size_t>(y) * g.nx + x]);
+}
+
+events::Brush brush_of(const erg::v1::Brush& b, const Model& m) {
+  return {b.x_m(), b.y_m(), b.radius_m(), b.falloff_m(), b.height(),
+          m.tile.gnx * static_cast<double>(m.tile.cell_m), m.tile.gny * static_cast<double>(m.tile.cell_m)};
+}
+}  // namespace
+
+TileState initial_state(const erg::v1::JobSpec& spec, const Model& model, const std::string& base_dir) {
+  TileState s;
+  s.allocate(model.tile);
+  using init::LayerKind;
+  const auto& L = spec.layers();
+  fill_owned(s.bedrock, init::generate_layer(L.bedrock(), LayerKind::kBedrock, spec, model.tile, base_dir),
+             [](double m) { return m_to_units(m); });
+  fill_owned(s.sand, init::generate_layer(L.sand(), LayerKind::kSand, spec, model.tile, base_dir),
+             [](double m) { return m_to_units(std::max(0.0, m)); });
+  fill_owned(s.vegetation,
+             init::generate_layer(L.vegetation(), LayerKind::kVegetation, spec, model.tile, base_dir),
+             [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
+  fill_owned(s.resistance,
+             init::generate_layer(L.resistance(), LayerKind::kResistance, spec, model.tile, base_dir),
+             [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
+  return s;
+}
+
+Simulation::Simulation(const erg::v1::JobSpec& spec, const std::string& base_dir, const RunOptions& opt)
+    : spec_(spec) {
+  spec_json_ = job::to_json(spec_);
+  model_ = make_model(spec_, static_cast<int>(spec_.domain().nx()), static_cast<int>(spec_.domain().ny()), 0, 0);
+  init_backend(opt, initial_state(spec_, model_, base_dir));
+}
+
+Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt) {
+  spec_ = job::parse_json(ckpt.job_spec_json, "checkpoint job_spec");
+  job::apply_defaults(spec_);
+  spec_json_ = job::to_json(spec_);
+  model_ = make_model(spec_, ckpt.nx, ckpt.ny, 0, 0);
+  step_ = ckpt.step;
+  for (const auto& [name, value] : ckpt.ledger) {
+    if (name == "sand_added_by_events") sand_added_ = parse_decimal(value);
+    if (name == "bedrock_added_by_events") bedrock_added_ = parse_decimal(value);
+  }
+  TileState s;
+  s.allocate(model_.tile);
+  for (int y = 0; y < ckpt.ny; ++y)
+    for (int x = 0; x < ckpt.nx; ++x) {
+      const size_t i = static_cast<size_t>(y) * ckpt.nx + x;
+      s.bedrock(x, y) = ckpt.bedrock_units[i];
+      s.sand(x, y) = ckpt.sand_units[i];
+      s.airborne(x, y) = ckpt.airborne_units[i];
+      s.vegetation(x, y) = ckpt.vegetation[i];
+      s.resistance(x, y) = ckpt.resistance[i];
+    }
+  init_backend(opt, s);
+}
+
+void Simulation::init_backend(const RunOptions& opt, const TileState& initial) {
+  backend_ = make_backend(opt.backend, model_, opt.threads);
+  backend_->upload(initial);
+}
+
+void Simulation::apply_events(std::int64_t step) {
+  const double lx = model_.tile.gnx * static_cast<double>(model_.tile.cell_m);
+  const double ly = model_.tile.gny * static_cast<double>(model_.tile.cell_m);
+  for (const auto& e : spec_.events()) {
+    if (e.step() != step) continue;
+    switch (e.action_case()) {
+      case erg::v1::Event::kSand:
+        sand_added_ += backend_->apply_sand_brush(brush_of(e.sand(), model_));
+        break;
+      case erg::v1::Event::kBedrock:
+        bedrock_added_ += backend_->apply_bedrock_brush(brush_of(e.bedrock(), model_));
+        break;
+      case erg::v1::Event::kVegetation: {
+        const auto& v = e.vegetation();
+        events::Region r{v.x_m(), v.y_m(), v.width_m(), v.height_m(),
+                         v.has_radius_m() ? v.radius_m() : -1.0, static_cast<float>(v.density()), lx, ly};
+        backend_->set_vegetation(r);
+        break;
+      }
+      default:  // wind switches are read by wind::at_step
+        break;
+    }
+  }
+}
+
+// The step pipeline ([P19] Fig. 3, [N24] 3.2, DESIGN.md section 2).
+void Simulation::step() {
+  auto t = Clock::now();
+  auto lap = [&](Stage s) {
+    backend_->synchronize();
+    times_.ms[s] += ms_since(t);
+    t = Clock::now();
+  };
+  apply_events(step_);
+  lap(kEvents);
+  backend_->wind(wind::at_step(spec_, step_));  // high-altitude wind, venturi, warping
+  lap(kWind);
+  backend_->shadow();
+  lap(kShadow);
+  backend_->saltation(step_);  // lift, hop, deposit, bounce, abrade
+  lap(kSaltation);
+  backend_->reptation();
+  lap(kReptation);
+  times_.avalanche_iterations += backend_->avalanche_sand();
+  lap(kAvalanche);
+  backend_->avalanche_bedrock();
+  lap(kBedrock);
+  ++step_;
+  ++times_.steps;
+}
+
+TileState Simulation::state() {
+  TileState s;
+  s.allocate(model_.tile);
+  backend_->download(s);
+  return s;
+}
+
+io::Checkpoint Simulation::checkpoint() {
+  const TileState s = state();
+  const TileGeom& g = model_.tile;
+  io::Checkpoint c;
+  c.step = step_;
+  c.nx = g.nx;
+  c.ny = g.ny;
+  c.job_spec_json = spec_json_;
+  const size_t n = static_cast<size_t>(g.nx) * g.ny;
+  c.bedrock_units.resize(n);
+  c.sand_units.resize(n);
+  c.airborne_units.resize(n);
+  c.vegetation.resize(n);
+  c.resistance.resize(n);
+  for (int y = 0; y < g.ny; ++y)
+    for (int x = 0; x < g.nx; ++x) {
+      const size_t i = static_cast<size_t>(y) * g.nx + x;
+      c.bedrock_units[i] = s.bedrock(x, y);
+      c.sand_units[i] = s.sand(x, y);
+      c.airborne_units[i] = s.airborne(x, y);
+      c.vegetation[i] = s.vegetation(x, y);
+      c.resistance[i] = s.resistance(x, y);
+    }
+  c.ledger = {{"sand_added_by_events", to_decimal(sand_added_)},
+              {"bedrock_added_by_events", to_decimal(bedrock_added_)}};
+  return c;
+}
+
+Simulation::Output Simulation::output() {
+  const TileState s = state();
+  const TileGeom& g = model_.tile;
+  Output o;
+  const size_t n = static_cast<size_t>(g.nx) * g.ny;
+  o.bedrock.resize(n);
+  o.sand.resize(n);
+  o.vegetation.resize(n);
+  o.airborne.resize(n);
+  for (int y = 0; y < g.ny; ++y)
+    for (int x = 0; x < g.nx; ++x) {
+      const size_t i = static_cast<size_t>(y) * g.nx + x;
+      o.bedrock[i] = static_cast<float>(units_to_m_d(s.bedrock(x, y)));
+      o.sand[i] = static_cast<float>(units_to_m_d(s.sand(x, y)));
+      o.vegetation[i] = s.vegetation(x, y);
+      o.airborne[i] = static_cast<float>(units_to_m_d(s.airborne(x, y)));
+    }
+  backend_->download_wind(o.wind);
+  backend_->download_shadow(o.shadow);
+  return o;
+}
+
+io::SnapshotMeta Simulation::snapshot_meta() {
+  const Totals t = totals();
+  io::SnapshotMeta m;
+  m.step = step_;
+  m.time_days = time_days();
+  m.cell_size_m = spec_.domain().cell_size_m();
+  m.nx = model_.tile.gnx;
+  m.ny = model_.tile.gny;
+  m.job_spec_json = spec_json_;
+  m.erg_version = ERG_VERSION;
+  m.unit_m = kUnitM;
+  m.sand_units_total = to_decimal(t.sand);
+  m.bedrock_units_total = to_decimal(t.bedrock);
+  m.airborne_units_total = to_decimal(t.airborne);
+  m.seed = static_cast<std::uint64_t>(spec_.seed());
+  m.backend = backend_->name();
+  return m;
+}
+
+}  // namespace erg

@@ -1,0 +1,83 @@
+// A run of the aeolian model on one tile: the state, the backend and the
+// per-step pipeline (the task list in Simulation::step, read top to bottom).
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "backend/backend.h"
+#include "erg/v1/job.pb.h"
+#include "io/io.h"
+#include "sim/model.h"
+#include "sim/state.h"
+
+namespace erg {
+
+struct RunOptions {
+  BackendKind backend = BackendKind::kAuto;
+  int threads = 0;  // 0: all hardware threads (OMP_NUM_THREADS)
+};
+
+// Pipeline stages, for timing.
+enum Stage { kEvents, kWind, kShadow, kSaltation, kReptation, kAvalanche, kBedrock, kStageCount };
+inline constexpr const char* kStageNames[kStageCount] = {
+    "events", "wind", "shadow", "saltation", "reptation", "avalanching", "bedrock_avalanching"};
+
+struct StageTimes {
+  std::array<double, kStageCount> ms{};  // accumulated wall time per stage
+  long long steps = 0;
+  long long avalanche_iterations = 0;    // iterations that moved sand
+};
+
+class Simulation {
+ public:
+  // A new run: generates the initial layers of a defaults-filled, validated
+  // spec. base_dir resolves relative map paths.
+  Simulation(const erg::v1::JobSpec& spec, const std::string& base_dir, const RunOptions& opt);
+  // A run continued from a checkpoint (its spec is inside).
+  Simulation(const io::Checkpoint& ckpt, const RunOptions& opt);
+
+  // Advances one step: the step's events, then the pipeline.
+  void step();
+
+  std::int64_t step_index() const { return step_; }
+  double time_days() const { return static_cast<double>(step_) * model_.time_step_days; }
+  const erg::v1::JobSpec& spec() const { return spec_; }
+  const Model& model() const { return model_; }
+  Backend& backend() { return *backend_; }
+  Totals totals() { return backend_->totals(); }
+  const StageTimes& times() const { return times_; }
+  // Exact change of the totals made by timeline events so far.
+  total_t sand_added_by_events() const { return sand_added_; }
+  total_t bedrock_added_by_events() const { return bedrock_added_; }
+
+  // The exact state (downloaded from the backend).
+  TileState state();
+  io::Checkpoint checkpoint();
+
+  // Float fields of the owned cells, row-major [ny][nx], for snapshots.
+  struct Output {
+    std::vector<float> bedrock, sand, vegetation, wind, airborne, shadow;
+  };
+  Output output();
+  io::SnapshotMeta snapshot_meta();
+
+ private:
+  void init_backend(const RunOptions& opt, const TileState& initial);
+  void apply_events(std::int64_t step);
+
+  erg::v1::JobSpec spec_;
+  std::string spec_json_;
+  Model model_;
+  std::unique_ptr<Backend> backend_;
+  std::int64_t step_ = 0;
+  total_t sand_added_ = 0, bedrock_added_ = 0;
+  StageTimes times_;
+};
+
+// Generates the initial exact state of a tile from the spec.
+TileState initial_state(const erg::v1::JobSpec& spec, const Model& model, const std::string& base_dir);
+
+}  // namespace erg

@@ -1,0 +1,94 @@
+// Avalanching ([N24] 3.8, eqs. 9-11), sand and bedrock.
+//
+// In each iteration every cell i computes, for its 8 neighbours j, the height
+// above the angle of repose
+//   B(i, j) = max(h(i) - h(j) - tan(theta_r) l |i - j|, 0)            (eq. 9)
+// and moves B_A = min(B_max / (1 + B_max / B_sum), s(i))  (eq. 11) in total,
+// to neighbour j in proportion p(i, j) = B(i, j) / B_sum, scaled by k_c.
+//
+// Exactness (DESIGN.md section 3): the iteration is two gather passes over
+// double-buffered fields, never in place. Pass 1: each donor i stores
+// f(i) = k_c B_A / B_sum and the integer total it sends,
+// out(i) = sum_j floor(f(i) B(i, j)). Pass 2: each receiver j recomputes
+// floor(f(i) B(i, j)) with the same function and inputs as the donor did, so
+// both agree to the unit; s'(j) = s(j) - out(j) + sum_i in(i -> j).
+//
+// Heights are float metres derived from the exact integers; tan_l(i) is
+// tan(theta_r(i)) * l, with theta_r from the cell's vegetation.
+#pragma once
+
+#include "core/grid.h"
+#include "core/hd.h"
+#include "core/units.h"
+
+namespace erg::avalanching {
+
+// Eq. 9 with the distance factor folded in: metres above repose.
+ERG_HD float excess(float h_donor, float h_receiver, float tan_l_donor, float dist_cells) {
+  return max_of(h_donor - h_receiver - tan_l_donor * dist_cells, 0.0f);
+}
+
+// The integer units a donor with fraction f sends for an excess b (metres).
+ERG_HD units_t transfer(float f, float b) { return floor_units(f * b * kUnitsPerMf); }
+
+// k_c schedule [N24 5]: damped every 10th iteration and the last five
+// (iterations numbered from 1).
+ERG_HD float kc_for(int iteration, int iterations, float kc, float kc_damped) {
+  return (iteration % 10 == 0 || iteration > iterations - 5) ? kc_damped : kc;
+}
+
+struct Donor {
+  float f;      // fraction of each excess that is sent (0: sends nothing)
+  units_t out;  // total units sent
+  bool stuck;   // has excess, but every share rounds to 0 units
+};
+
+// Pass 1 at one cell, common path: f and out, before checking out against
+// what is available. hn[k] are the neighbours' heights in kNeighbours order;
+// `available` caps the amount (the cell's sand; bedrock is unlimited).
+ERG_HD Donor donor_shares(float h, const float hn[8], float tan_l, units_t available, float kc) {
+  float b[8];
+  float bsum = 0.0f, bmax = 0.0f;
+  for (int k = 0; k < 8; ++k) {
+    b[k] = excess(h, hn[k], tan_l, kNeighbours[k].dist);
+    bsum += b[k];
+    bmax = max_of(bmax, b[k]);
+  }
+  const bool moves = bsum > 0.0f && available > 0;
+  const float safe_sum = moves ? bsum : 1.0f;
+  const float ba = min_of(bmax / (1.0f + bmax / safe_sum), units_to_m(available));  // eq. 11
+  const float f = moves ? kc * ba / safe_sum : 0.0f;
+  units_t out = 0;
+  for (int k = 0; k < 8; ++k) out += transfer(f, b[k]);
+  return {f, out, false};
+}
+
+// Pass 1 at one cell, complete: float rounding can push the sum of shares a
+// few units past what is available, then f shrinks until it fits (rare, and
+// the same everywhere); a donor whose shares all round to 0 sends nothing and
+// is marked stuck (a larger k_c may move it later).
+ERG_HD Donor donor(float h, const float hn[8], float tan_l, units_t available, float kc) {
+  Donor d = donor_shares(h, hn, tan_l, available, kc);
+  if (d.out > available) {
+    float b[8];
+    for (int k = 0; k < 8; ++k) b[k] = excess(h, hn[k], tan_l, kNeighbours[k].dist);
+    while (d.out > available) {
+      d.f *= 0.99999f;
+      d.out = 0;
+      for (int k = 0; k < 8; ++k) d.out += transfer(d.f, b[k]);
+    }
+  }
+  if (d.out == 0) {
+    d.stuck = d.f > 0.0f;
+    d.f = 0.0f;
+  }
+  return d;
+}
+
+// Pass 2 at a receiver: units arriving from a donor with fraction f_donor.
+ERG_HD units_t inflow(float f_donor, float h_donor, float h_receiver, float tan_l_donor,
+                      float dist_cells) {
+  return transfer(f_donor, excess(h_donor, h_receiver, tan_l_donor, dist_cells));
+}
+
+}  // namespace erg::avalanching

@@ -1,0 +1,29 @@
+// Reptation ([N24] 3.7, eqs. 6-8): impacts push sand down every slope.
+//
+// Between neighbours i and j the flux is symmetric: with d the slope between
+// them and s_r the impact strength from saltation,
+//   s_m = k_r |d| (s_r(i) + s_r(j)) / 2,
+// capped by the donor's (the higher cell's) sand, and each cell applies the
+// mean over its 8 neighbours. Donor and receiver evaluate transfer() with the
+// same arguments in the same order, so both get the same integer count: a
+// gather with no atomics, exact to the unit. The 1/8 is taken in integers on
+// the donor's sand, so 8 transfers never exceed it (the reference code's
+// flaw, DESIGN.md section 6).
+#pragma once
+
+#include "core/hd.h"
+#include "core/units.h"
+
+namespace erg::reptation {
+
+// Units moving from donor to receiver. dh = h_donor - h_receiver > 0 units;
+// dist_m = l |i - j|.
+ERG_HD units_t transfer(units_t dh, float dist_m, float sr_donor, float sr_receiver,
+                        units_t sand_donor, float k_r) {
+  const float slope = units_to_m(dh) / dist_m;                            // eq. 6
+  const float s_m = k_r * slope * (0.5f * (sr_donor + sr_receiver));      // eq. 7
+  const units_t per_neighbour = floor_units(s_m * (0.125f * kUnitsPerMf));  // mean of 8
+  return min_of(per_neighbour, sand_donor >> 3);                          // eq. 8
+}
+
+}  // namespace erg::reptation

@@ -1,0 +1,124 @@
+// Saltation with abrasion ([P19] 5.1-5.2, [N24] 3.6), per cell.
+//
+// Each step: (1) lift sand into the airborne slab buffer; (2) advect every
+// airborne amount one hop downwind, split bilinearly over the four cells
+// around the landing point (a scatter of integer units: any order gives the
+// same sums; ghost contributions are added back to their owners); (3) at each
+// cell a fraction beta of what landed is deposited and the rest bounces and
+// stays airborne for the next step; bounces over thin sand abrade bedrock into
+// sand. What landed drives reptation.
+//
+// Two transport modes share these functions: EXPECTED moves the expected
+// value of every event [N24]; STOCHASTIC moves whole slabs with the
+// probabilities of [P19]/[W95], drawn from core/philox.h.
+#pragma once
+
+#include "core/hd.h"
+#include "core/units.h"
+#include "core/vec2.h"
+#include "stages/vegetation.h"
+
+namespace erg::saltation {
+
+struct Params {
+  float slab_units;            // eps_S in units
+  float hop_time_s;            // hop length = |w| hop_time_s ...
+  float max_hop_m;             // ... capped here
+  float cell_m;
+  float deposit_on_sand;       // f_S(s > 0)
+  float deposit_on_bedrock;    // f_S(0)
+  float abrasion_k;            // k_a
+  units_t abrasion_threshold;  // sand thinner than this is abraded through
+  bool stochastic;
+};
+
+// (1) Lift: eps_S (1 - sigma)(1 - v), at most the sand present [N24 eq. 5].
+ERG_HD units_t lift_expected(units_t sand, float shadow, float v, const Params& p) {
+  const units_t want = floor_units(p.slab_units * vegetation::lift_factor(shadow, v));
+  return min_of(want, sand);
+}
+// A whole slab is lifted with probability (1 - sigma)(1 - v) [P19 5.1].
+ERG_HD units_t lift_stochastic(units_t sand, float shadow, float v, float u, const Params& p) {
+  if (!(u < vegetation::lift_factor(shadow, v))) return 0;
+  return min_of(floor_units(p.slab_units), sand);
+}
+
+// (2) Landing point of an amount leaving local cell (x, y) under wind w, in
+// local cell coordinates: one hop of |w| hop_time_s metres, at most max_hop_m.
+struct Landing {
+  int x0, y0;    // lower-left of the four receiving cells
+  float fx, fy;  // bilinear weights towards x0 + 1, y0 + 1
+};
+ERG_HD Landing landing(int x, int y, Vec2 w, const Params& p) {
+  const float speed = length(w);
+  float sx = 0.0f, sy = 0.0f;
+  if (speed > 0.0f) {
+    const float hop_m = min_of(speed * p.hop_time_s, p.max_hop_m);
+    const float scale = hop_m / (speed * p.cell_m);
+    sx = w.x * scale;
+    sy = w.y * scale;
+  }
+  const float tx = static_cast<float>(x) + sx, ty = static_cast<float>(y) + sy;
+  const float x0 = floorf(tx), y0 = floorf(ty);
+  return {static_cast<int>(x0), static_cast<int>(y0), tx - x0, ty - y0};
+}
+
+// Exact bilinear split of `a` units: q[0..3] for (x0,y0), (x0+1,y0),
+// (x0,y0+1), (x0+1,y0+1); the parts sum to a and are never negative.
+ERG_HD void split_bilinear(units_t a, float fx, float fy, units_t q[4]) {
+  const float af = static_cast<float>(a);
+  units_t rest = a;
+  q[0] = min_of(floor_units(af * ((1.0f - fx) * (1.0f - fy))), rest);
+  rest -= q[0];
+  q[1] = min_of(floor_units(af * (fx * (1.0f - fy))), rest);
+  rest -= q[1];
+  q[2] = min_of(floor_units(af * ((1.0f - fx) * fy)), rest);
+  rest -= q[2];
+  q[3] = rest;
+}
+// Stochastic: the whole amount lands in one of the four cells, chosen with
+// the bilinear weights as probabilities.
+ERG_HD int pick_corner(float fx, float fy, float u) {
+  const float w0 = (1.0f - fx) * (1.0f - fy), w1 = fx * (1.0f - fy), w2 = (1.0f - fx) * fy;
+  if (u < w0) return 0;
+  if (u < w0 + w1) return 1;
+  if (u < w0 + w1 + w2) return 2;
+  return 3;
+}
+
+// (3) Deposition, bounce and abrasion at a cell where `landed` units arrived.
+struct Impact {
+  units_t deposited;  // to the cell's sand
+  units_t bounced;    // stays airborne
+  units_t abraded;    // bedrock turned into sand at this cell
+  float reptation_m;  // s_r: sand that hit the cell, weighted by (1 - v) [N24 3.6]
+};
+// `sand` is the cell's sand after lifting; `u` the deposit draw (stochastic).
+ERG_HD Impact impact(units_t landed, units_t sand, float shadow, float v, float resistance,
+                     float wind_speed, float u, const Params& p) {
+  Impact r{0, 0, 0, 0.0f};
+  if (landed <= 0) return r;
+  // Stochastic slabs see Werner's step (any sand); expected transport its mean.
+  const float sand_fraction =
+      p.stochastic ? (sand > 0 ? 1.0f : 0.0f)
+                   : (p.slab_units > 0.0f ? min_of(static_cast<float>(sand) / p.slab_units, 1.0f)
+                                          : (sand > 0 ? 1.0f : 0.0f));
+  const float beta = vegetation::deposition_probability(shadow, sand_fraction, v, p.deposit_on_sand,
+                                                        p.deposit_on_bedrock);
+  if (p.stochastic) {
+    r.deposited = (u < beta) ? landed : 0;
+  } else {
+    r.deposited = min_of(floor_units(static_cast<float>(landed) * beta), landed);
+  }
+  r.bounced = landed - r.deposited;
+  // Abrasion [P19 5.2]: k_a (1 - r) |w| (1 - v) per metre of sand bouncing on
+  // thin sand (scaled by the bounced amount, [N24] 3.6).
+  if (p.abrasion_k > 0.0f && r.bounced > 0 && sand < p.abrasion_threshold) {
+    const float eps = p.abrasion_k * (1.0f - resistance) * wind_speed * vegetation::abrasion_factor(v);
+    r.abraded = max_of(floor_units(eps * static_cast<float>(r.bounced)), units_t{0});
+  }
+  r.reptation_m = units_to_m(landed) * vegetation::reptation_factor(v);
+  return r;
+}
+
+}  // namespace erg::saltation

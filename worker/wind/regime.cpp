@@ -1,0 +1,111 @@
+#include "wind/regime.h"
+
+#include <cmath>
+
+#include "core/philox.h"
+
+namespace erg::wind {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+Vec2 polar(double speed, double deg) {
+  const double r = deg * kPi / 180.0;
+  return {static_cast<float>(speed * std::cos(r)), static_cast<float>(speed * std::sin(r))};
+}
+
+// Angle b moved to within 180 degrees of a, for interpolation along the
+// shorter arc.
+double unwrap_near(double a, double b) {
+  double d = std::fmod(b - a, 360.0);
+  if (d > 180.0) d -= 360.0;
+  if (d < -180.0) d += 360.0;
+  return a + d;
+}
+}  // namespace
+
+Vec2 direction(double deg) { return polar(1.0, deg); }
+
+Vec2 regime_at(const erg::v1::WindRegime& regime, std::int64_t local_step, std::int64_t global_step,
+               std::uint64_t seed) {
+  using R = erg::v1::WindRegime;
+  switch (regime.regime_case()) {
+    case R::kConstant:
+      return polar(regime.constant().speed_mps(), regime.constant().direction_deg());
+    case R::kRose: {
+      const auto& rose = regime.rose();
+      // One draw per hold period, keyed by the global period index.
+      const std::int64_t period = global_step / rose.hold_steps();
+      const Philox4 r = random4(seed, static_cast<std::uint64_t>(period), 0, RandomStream::kWindRose);
+      const double u = u01d(r.v[0], r.v[1]);
+      double acc = 0;
+      int pick = rose.entries_size() - 1;
+      for (int k = 0; k < rose.entries_size(); ++k) {
+        acc += rose.entries(k).probability();
+        if (u < acc) {
+          pick = k;
+          break;
+        }
+      }
+      const auto& e = rose.entries(pick);
+      const double jitter = (u01d(r.v[2], r.v[3]) - 0.5) * rose.sector_width_deg();
+      return polar(e.speed_mps(), e.direction_deg() + jitter);
+    }
+    case R::kSeries: {
+      const auto& s = regime.series();
+      std::int64_t t = local_step;
+      if (s.period_steps() > 0) t %= s.period_steps();
+      const auto& first = s.keyframes(0);
+      if (t <= first.step()) return polar(first.speed_mps(), first.direction_deg());
+      for (int k = 1; k < s.keyframes_size(); ++k) {
+        const auto& a = s.keyframes(k - 1);
+        const auto& b = s.keyframes(k);
+        if (t <= b.step()) {
+          const double f = static_cast<double>(t - a.step()) / static_cast<double>(b.step() - a.step());
+          const double speed = a.speed_mps() + f * (b.speed_mps() - a.speed_mps());
+          const double bd = unwrap_near(a.direction_deg(), b.direction_deg());
+          return polar(speed, a.direction_deg() + f * (bd - a.direction_deg()));
+        }
+      }
+      if (s.period_steps() > 0) {
+        // Wrap from the last keyframe back to the first over the period's end.
+        const auto& a = s.keyframes(s.keyframes_size() - 1);
+        const double span = static_cast<double>(s.period_steps() - a.step() + first.step());
+        const double f = static_cast<double>(t - a.step()) / span;
+        const double speed = a.speed_mps() + f * (first.speed_mps() - a.speed_mps());
+        const double bd = unwrap_near(a.direction_deg(), first.direction_deg());
+        return polar(speed, a.direction_deg() + f * (bd - a.direction_deg()));
+      }
+      const auto& last = s.keyframes(s.keyframes_size() - 1);
+      return polar(last.speed_mps(), last.direction_deg());
+    }
+    case R::kBidirectional: {
+      const auto& b = regime.bidirectional();
+      const double n = b.flux_ratio();
+      const std::int64_t p = b.period_steps();
+      // Primary for round(p N / (1 + N)) steps of each period, at least 1 and
+      // leaving at least 1 for the secondary.
+      std::int64_t primary = std::llround(static_cast<double>(p) * n / (1.0 + n));
+      if (primary < 1) primary = 1;
+      if (primary > p - 1) primary = p - 1;
+      const bool first = (local_step % p) < primary;
+      return polar(b.speed_mps(), b.direction_deg() + (first ? 0.0 : b.angle_deg()));
+    }
+    case R::REGIME_NOT_SET:
+      break;
+  }
+  return {0.0f, 0.0f};
+}
+
+Vec2 at_step(const erg::v1::JobSpec& spec, std::int64_t step) {
+  const erg::v1::WindRegime* regime = &spec.wind();
+  std::int64_t since = 0;
+  for (const auto& e : spec.events())
+    if (e.has_wind() && e.step() <= step && e.step() >= since) {
+      regime = &e.wind();
+      since = e.step();
+    }
+  return regime_at(*regime, step - since, step, spec.seed());
+}
+
+}  // namespace erg::wind
