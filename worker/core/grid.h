@@ -63,8 +63,16 @@ struct Neighbour {
   float dist;
 };
 inline constexpr float kSqrt2 = 1.41421356237309515f;
-inline constexpr Neighbour kNeighbours[8] = {{1, 0, 1.0f},     {1, 1, kSqrt2},  {0, 1, 1.0f},
-                                             {-1, 1, kSqrt2},  {-1, 0, 1.0f},   {-1, -1, kSqrt2},
-                                             {0, -1, 1.0f},    {1, -1, kSqrt2}};
+// Neighbour k (0..7) in that order. Per-cell math shared with the device uses
+// this, not kNeighbours: nvcc cannot index a namespace-scope constexpr array
+// in device code, but a constexpr local of a host/device function is fine.
+ERG_HD constexpr Neighbour neighbour(int k) {
+  constexpr Neighbour table[8] = {{1, 0, 1.0f},    {1, 1, kSqrt2},   {0, 1, 1.0f},
+                                  {-1, 1, kSqrt2}, {-1, 0, 1.0f},    {-1, -1, kSqrt2},
+                                  {0, -1, 1.0f},   {1, -1, kSqrt2}};
+  return table[k];
+}
+inline constexpr Neighbour kNeighbours[8] = {neighbour(0), neighbour(1), neighbour(2), neighbour(3),
+                                             neighbour(4), neighbour(5), neighbour(6), neighbour(7)};
 
 }  // namespace erg

@@ -8,6 +8,16 @@
 #define ERG_HD inline
 #endif
 
+// Fully unroll a short fixed loop (the 8 neighbours) so that the loop
+// around it can be vectorised.
+#if defined(__CUDACC__)
+#define ERG_UNROLL _Pragma("unroll")
+#elif defined(__GNUC__) && !defined(__clang__)
+#define ERG_UNROLL _Pragma("GCC unroll 8")
+#else
+#define ERG_UNROLL
+#endif
+
 #include <cmath>
 #include <cstdint>
 

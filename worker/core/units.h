@@ -30,9 +30,12 @@ inline constexpr float kUnitsPerMf = 4294967296.0f;
 ERG_HD float units_to_m(units_t u) { return static_cast<float>(u) * kUnitMf; }
 ERG_HD double units_to_m_d(units_t u) { return static_cast<double>(u) * kUnitM; }
 
-// Largest integer count not above x (x in units, finite, |x| < 2^62).
-ERG_HD units_t floor_units(float x) { return static_cast<units_t>(floorf(x)); }
-ERG_HD units_t floor_units_d(double x) { return static_cast<units_t>(floor(x)); }
+// Whole units in an amount x >= 0 (in units, finite, < 2^62): floor(x).
+// Every transfer is a non-negative amount, and for x >= 0 floor is the
+// truncating conversion, which vectorises (floorf does not without
+// -fno-trapping-math); negative amounts count as nothing.
+ERG_HD units_t floor_units(float x) { return static_cast<units_t>(max_of(x, 0.0f)); }
+ERG_HD units_t floor_units_d(double x) { return static_cast<units_t>(max_of(x, 0.0)); }
 
 // Nearest integer count of a length in metres (initial maps, brushes).
 inline units_t m_to_units(double m) { return static_cast<units_t>(std::llround(m * kUnitsPerM)); }

@@ -1,6 +1,7 @@
 #include "init/layers.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <stdexcept>
 
@@ -140,9 +141,12 @@ void add_map(const erg::v1::MapFile& m, const erg::v1::JobSpec& spec, const Tile
              const std::string& base_dir, std::vector<double>& out) {
   const std::string file = job::resolve_path(m.path(), base_dir);
   auto format = m.format();
-  if (format == erg::v1::MapFile::FORMAT_UNSPECIFIED)
-    format = file.size() > 4 && file.substr(file.size() - 4) == ".png" ? erg::v1::MapFile::PNG16
-                                                                        : erg::v1::MapFile::HDF5;
+  if (format == erg::v1::MapFile::FORMAT_UNSPECIFIED) {
+    // As validate() guesses it: the extension, in any case.
+    std::string ext = file.size() > 4 ? file.substr(file.size() - 4) : "";
+    for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    format = ext == ".png" ? erg::v1::MapFile::PNG16 : erg::v1::MapFile::HDF5;
+  }
   io::Map map = format == erg::v1::MapFile::HDF5
                     ? io::read_hdf5_map(file, m.dataset().empty() ? "/data" : m.dataset())
                     : io::read_png_map(file);
@@ -168,7 +172,8 @@ std::vector<double> generate_layer(const erg::v1::Layer& layer, LayerKind kind,
     for (auto& v : out) v += layer.constant();
   if (layer.has_fbm())
     add_fbm(layer.fbm(),
-            static_cast<std::uint32_t>(spec.seed() * 2654435761u + static_cast<std::uint32_t>(kind) * 97u +
+            static_cast<std::uint32_t>(static_cast<std::uint64_t>(spec.seed()) * 2654435761u +
+                                       static_cast<std::uint32_t>(kind) * 97u +
                                        static_cast<std::uint64_t>(layer.fbm().seed_offset())),
             d, tile, out);
   if (layer.has_uniform())

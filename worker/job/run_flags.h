@@ -15,7 +15,7 @@ struct RunFlags {
   std::string out_dir;      // --out DIR
   std::string resume_dir;   // --resume DIR
   Overrides overrides;
-  int threads = 0;          // --threads T (0: all)
+  int threads = 0;          // --threads T; unset (0): all hardware threads
   std::string backend = "auto";  // --backend auto|cpu|cuda
   int progress_fd = -1;     // --progress-fd FD (erg-worker only)
   bool quiet = false;       // --quiet

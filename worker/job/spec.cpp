@@ -3,6 +3,7 @@
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/util/json_util.h>
 
+#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -23,21 +24,17 @@ std::string join_lines(const std::vector<std::string>& v) {
   return s;
 }
 
-// Shortest text that reads back as the same double.
+// Whole numbers in full ("10", "1000000000", not "1e+01"), anything else as
+// the shortest text that reads back as the same double. std::to_chars never
+// throws (std::stod did, on subnormal values).
 std::string num(double v) {
   if (std::isnan(v)) return "nan";
   if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-  std::ostringstream o;
-  o.precision(17);
-  o << v;
-  std::string s = o.str();
-  for (int p = 1; p <= 17; ++p) {
-    std::ostringstream t;
-    t.precision(p);
-    t << v;
-    if (std::stod(t.str()) == v) return t.str();
-  }
-  return s;
+  char buf[64];
+  const bool whole = v == std::trunc(v) && std::fabs(v) < 1e16;
+  const auto res = whole ? std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed)
+                         : std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, res.ptr);
 }
 
 const erg::v1::FieldSpec& spec_of(const pb::FieldDescriptor* f) {

@@ -47,19 +47,20 @@ struct Donor {
 // what is available. hn[k] are the neighbours' heights in kNeighbours order;
 // `available` caps the amount (the cell's sand; bedrock is unlimited).
 ERG_HD Donor donor_shares(float h, const float hn[8], float tan_l, units_t available, float kc) {
-  float b[8];
-  float bsum = 0.0f, bmax = 0.0f;
-  for (int k = 0; k < 8; ++k) {
-    b[k] = excess(h, hn[k], tan_l, kNeighbours[k].dist);
-    bsum += b[k];
-    bmax = max_of(bmax, b[k]);
-  }
+  // Written out for the 8 neighbours (kNeighbours order: straight, diagonal,
+  // alternating) so that compilers vectorise the loop over cells around it.
+  const float b0 = excess(h, hn[0], tan_l, 1.0f), b1 = excess(h, hn[1], tan_l, kSqrt2);
+  const float b2 = excess(h, hn[2], tan_l, 1.0f), b3 = excess(h, hn[3], tan_l, kSqrt2);
+  const float b4 = excess(h, hn[4], tan_l, 1.0f), b5 = excess(h, hn[5], tan_l, kSqrt2);
+  const float b6 = excess(h, hn[6], tan_l, 1.0f), b7 = excess(h, hn[7], tan_l, kSqrt2);
+  const float bsum = ((((((b0 + b1) + b2) + b3) + b4) + b5) + b6) + b7;
+  const float bmax = max_of(max_of(max_of(b0, b1), max_of(b2, b3)), max_of(max_of(b4, b5), max_of(b6, b7)));
   const bool moves = bsum > 0.0f && available > 0;
   const float safe_sum = moves ? bsum : 1.0f;
   const float ba = min_of(bmax / (1.0f + bmax / safe_sum), units_to_m(available));  // eq. 11
   const float f = moves ? kc * ba / safe_sum : 0.0f;
-  units_t out = 0;
-  for (int k = 0; k < 8; ++k) out += transfer(f, b[k]);
+  const units_t out = transfer(f, b0) + transfer(f, b1) + transfer(f, b2) + transfer(f, b3) +
+                      transfer(f, b4) + transfer(f, b5) + transfer(f, b6) + transfer(f, b7);
   return {f, out, false};
 }
 
@@ -71,7 +72,7 @@ ERG_HD Donor donor(float h, const float hn[8], float tan_l, units_t available, f
   Donor d = donor_shares(h, hn, tan_l, available, kc);
   if (d.out > available) {
     float b[8];
-    for (int k = 0; k < 8; ++k) b[k] = excess(h, hn[k], tan_l, kNeighbours[k].dist);
+    for (int k = 0; k < 8; ++k) b[k] = excess(h, hn[k], tan_l, neighbour(k).dist);
     while (d.out > available) {
       d.f *= 0.99999f;
       d.out = 0;

@@ -33,13 +33,16 @@ struct Params {
 };
 
 // (1) Lift: eps_S (1 - sigma)(1 - v), at most the sand present [N24 eq. 5].
-ERG_HD units_t lift_expected(units_t sand, float shadow, float v, const Params& p) {
+// Still air lifts nothing (a hop of length 0 would only churn the cell).
+ERG_HD units_t lift_expected(units_t sand, float shadow, float v, float wind_speed, const Params& p) {
+  if (!(wind_speed > 0.0f)) return 0;
   const units_t want = floor_units(p.slab_units * vegetation::lift_factor(shadow, v));
   return min_of(want, sand);
 }
 // A whole slab is lifted with probability (1 - sigma)(1 - v) [P19 5.1].
-ERG_HD units_t lift_stochastic(units_t sand, float shadow, float v, float u, const Params& p) {
-  if (!(u < vegetation::lift_factor(shadow, v))) return 0;
+ERG_HD units_t lift_stochastic(units_t sand, float shadow, float v, float wind_speed, float u,
+                               const Params& p) {
+  if (!(wind_speed > 0.0f) || !(u < vegetation::lift_factor(shadow, v))) return 0;
   return min_of(floor_units(p.slab_units), sand);
 }
 

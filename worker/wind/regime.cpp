@@ -54,8 +54,13 @@ Vec2 regime_at(const erg::v1::WindRegime& regime, std::int64_t local_step, std::
     case R::kSeries: {
       const auto& s = regime.series();
       std::int64_t t = local_step;
-      if (s.period_steps() > 0) t %= s.period_steps();
       const auto& first = s.keyframes(0);
+      if (s.period_steps() > 0) {
+        t %= s.period_steps();
+        // Before the first keyframe of a period: still on the way back from
+        // the previous period's last keyframe (the wrap segment below).
+        if (t < first.step()) t += s.period_steps();
+      }
       if (t <= first.step()) return polar(first.speed_mps(), first.direction_deg());
       for (int k = 1; k < s.keyframes_size(); ++k) {
         const auto& a = s.keyframes(k - 1);

@@ -35,9 +35,13 @@ struct RowFlags {
 template <bool kBedrock>
 RowFlags donor_row(const float* h, const float* tan_l, float tan_l_const, const units_t* sand,
                    float kc, const Offsets& off, int n, float* frac, units_t* out) {
+  // Offsets in locals: loads through `off` inside the loop would not be
+  // hoisted (the stores to frac/out might alias it) and block vectorisation.
+  const long o0 = off.o[0], o1 = off.o[1], o2 = off.o[2], o3 = off.o[3];
+  const long o4 = off.o[4], o5 = off.o[5], o6 = off.o[6], o7 = off.o[7];
   for (int x = 0; x < n; ++x) {
-    float hn[8];
-    for (int k = 0; k < 8; ++k) hn[k] = h[x + off.o[k]];
+    const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
+                         h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
     const float t = kBedrock ? tan_l_const : tan_l[x];
     const units_t avail = kBedrock ? kUnlimited : sand[x];
     const avalanching::Donor d = avalanching::donor_shares(h[x], hn, t, avail, kc);
@@ -68,6 +72,7 @@ void inflow_row(const float* h, const float* tan_l, float tan_l_const, const flo
                 const Offsets& off, int n, units_t* in) {
   for (int x = 0; x < n; ++x) {
     units_t sum = 0;
+    ERG_UNROLL
     for (int k = 0; k < 8; ++k) {
       // The donor is the neighbour; it saw this cell in the opposite direction,
       // at the same distance.

@@ -20,16 +20,18 @@ void CpuBackend::saltation(std::int64_t step) {
     units_t* air = airborne_.row(y);
     const float* sh = shadow_.row(y);
     const float* v = vegetation_.row(y);
+    const float* wx = wind_x_.row(y);
+    const float* wy = wind_y_.row(y);
     if (p.stochastic) {
       for (int x = 0; x < g_.nx; ++x) {
         const float u = u01(random4(seed, ustep, g_.global_index(x, y), RandomStream::kLift).v[0]);
-        const units_t q = saltation::lift_stochastic(s[x], sh[x], v[x], u, p);
+        const units_t q = saltation::lift_stochastic(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), u, p);
         s[x] -= q;
         air[x] += q;
       }
     } else {
       for (int x = 0; x < g_.nx; ++x) {
-        const units_t q = saltation::lift_expected(s[x], sh[x], v[x], p);
+        const units_t q = saltation::lift_expected(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), p);
         s[x] -= q;
         air[x] += q;
       }

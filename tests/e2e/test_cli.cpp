@@ -1,0 +1,278 @@
+// The programs as users run them: `erg run` (progress, outputs, the snapshot
+// file contract, resume, refusal to clobber, bad jobs, signals), the
+// examples, erg-bench and the backend flag.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include "io/io.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kErg = ERG_BIN;
+const std::string kWorker = ERG_WORKER_BIN;
+const std::string kBench = ERG_BENCH_BIN;
+const std::string kExamples = ERG_EXAMPLES_DIR;
+
+struct Result {
+  int code;
+  std::string output;  // stdout and stderr
+};
+
+Result run(const std::string& cmd) {
+  std::array<char, 4096> buf{};
+  std::string out;
+  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (!p) return {-1, ""};
+  size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) out.append(buf.data(), n);
+  const int status = ::pclose(p);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), out};
+}
+
+class TempDir {
+ public:
+  TempDir() {
+    const fs::path base = fs::temp_directory_path() / "erg-e2e";
+    fs::create_directories(base);
+    std::string tmpl = (base / "XXXXXX").string();
+    path_ = ::mkdtemp(tmpl.data());
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  const std::string& path() const { return path_; }
+  std::string operator/(const std::string& s) const { return path_ + "/" + s; }
+
+ private:
+  std::string path_;
+};
+
+void write(const std::string& path, const std::string& text) {
+  std::ofstream o(path);
+  o << text;
+}
+
+// A small job exercising every layer and an event.
+const char* kSmallJob = R"({
+  "name": "e2e",
+  "domain": {"nx": 64, "ny": 48, "cell_size_m": 2.0},
+  "layers": {
+    "bedrock": {"fbm": {"amplitude": 2, "wavelength_m": 64, "octaves": 2}},
+    "sand": {"patches": {"coverage": 0.3, "radius_m": 10, "height": 2, "falloff_m": 4}},
+    "vegetation": {"uniform": {"min": 0, "max": 0.2}}
+  },
+  "wind": {"constant": {"speed_mps": 5, "direction_deg": 30}},
+  "events": [{"step": 5, "sand": {"x_m": 60, "y_m": 40, "radius_m": 12, "falloff_m": 4, "height": 2}}],
+  "seed": 3,
+  "run": {"steps": 24, "snapshot_every": 8, "checkpoint_every": 8}
+})";
+
+TEST(Cli, RunWritesTheDocumentedOutputs) {
+  TempDir t;
+  write(t / "job.json", kSmallJob);
+  const Result r = run(kErg + " run " + (t / "job.json") + " --out " + (t / "out") + " --threads 2");
+  ASSERT_EQ(r.code, 0) << r.output;
+  // Progress bar (non-TTY form: a line per 10%) and the summary.
+  EXPECT_NE(r.output.find("step 24/24"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("100%"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("steps/s"), std::string::npos) << r.output;
+  for (const char* s : {"00000000", "00000008", "00000016", "00000024"}) {
+    EXPECT_TRUE(fs::exists(t / ("out/snapshots/step_" + std::string(s) + ".h5"))) << s;
+    EXPECT_TRUE(fs::exists(t / ("out/snapshots/step_" + std::string(s) + ".xdmf"))) << s;
+    EXPECT_TRUE(fs::exists(t / ("out/previews/step_" + std::string(s) + ".png"))) << s;
+  }
+  EXPECT_TRUE(fs::exists(t / "out/checkpoints/step_00000024.h5"));
+  EXPECT_TRUE(fs::exists(t / "out/job.json"));
+  // Only the newest two checkpoints are kept; no temporaries are left.
+  int checkpoints = 0;
+  for (const auto& e : fs::recursive_directory_iterator(t / "out")) {
+    EXPECT_EQ(e.path().string().find(".tmp-"), std::string::npos) << e.path();
+    if (e.path().parent_path().filename() == "checkpoints") ++checkpoints;
+  }
+  EXPECT_EQ(checkpoints, 2);
+
+  // The file contract, read back by erg's reader ...
+  const erg::io::Snapshot s = erg::io::read_snapshot(t / "out/snapshots/step_00000024.h5");
+  EXPECT_EQ(s.meta.step, 24);
+  EXPECT_EQ(s.meta.nx, 64);
+  EXPECT_EQ(s.meta.ny, 48);
+  EXPECT_DOUBLE_EQ(s.meta.cell_size_m, 2.0);
+  EXPECT_DOUBLE_EQ(s.meta.time_days, 240.0);
+  EXPECT_DOUBLE_EQ(s.meta.unit_m, 1.0 / 4294967296.0);
+  EXPECT_EQ(s.bedrock.size(), 64u * 48u);
+  EXPECT_EQ(s.wind.size(), 64u * 48u * 2u);
+  EXPECT_NE(s.meta.job_spec_json.find("\"nx\": \"64\""), std::string::npos);
+  // ... and by an independent tool (h5py): shapes, dtypes, and the exact
+  // totals match the checkpoint's integers.
+  const std::string py = R"(
+import h5py, numpy as np, sys
+f = h5py.File(sys.argv[1], 'r')
+c = h5py.File(sys.argv[2], 'r')
+for n in ('bedrock', 'sand', 'vegetation'):
+    assert f[n].shape == (48, 64) and f[n].dtype == np.float32, n
+assert f['wind'].shape == (48, 64, 2) and f['wind'].dtype == np.float32
+for a in ('step', 'time_days', 'cell_size_m', 'nx', 'ny', 'job_spec', 'erg_version', 'unit_m',
+          'sand_units_total', 'bedrock_units_total'):
+    assert a in f.attrs, a
+assert int(f.attrs['sand_units_total']) == int(c['sand_units'][:].astype(object).sum())
+assert int(f.attrs['bedrock_units_total']) == int(c['bedrock_units'][:].astype(object).sum())
+unit = f.attrs['unit_m']
+assert np.allclose(f['sand'][:], c['sand_units'][:] * unit, rtol=1e-6, atol=1e-6)
+print('contract ok')
+)";
+  write(t / "check.py", py);
+  const Result p = run("/usr/bin/python3 " + (t / "check.py") + " " + (t / "out/snapshots/step_00000024.h5") +
+                       " " + (t / "out/checkpoints/step_00000024.h5"));
+  if (p.output.find("No module named") != std::string::npos) GTEST_SKIP() << "h5py missing: " << p.output;
+  EXPECT_EQ(p.code, 0) << p.output;
+  EXPECT_NE(p.output.find("contract ok"), std::string::npos) << p.output;
+}
+
+std::vector<std::int64_t> final_sand(const std::string& dir, const std::string& step) {
+  return erg::io::read_checkpoint(dir + "/checkpoints/step_" + step + ".h5").sand_units;
+}
+
+// Stopping and resuming gives the same bits as running straight through, in
+// both transport modes.
+TEST(Cli, ResumeContinuesBitwiseIdentically) {
+  for (const std::string transport : {"EXPECTED", "STOCHASTIC"}) {
+    TempDir t;
+    std::string job = kSmallJob;
+    job.replace(job.find("\"seed\""), 0, "\"transport\": \"" + transport + "\", ");
+    write(t / "job.json", job);
+    ASSERT_EQ(run(kErg + " run " + (t / "job.json") + " --out " + (t / "straight")).code, 0);
+    ASSERT_EQ(run(kErg + " run " + (t / "job.json") + " --out " + (t / "split") + " --steps 8").code, 0);
+    const Result r = run(kErg + " run --resume " + (t / "split") + " --steps 24 --threads 1");
+    ASSERT_EQ(r.code, 0) << r.output;
+    const auto a = erg::io::read_checkpoint(t / "straight/checkpoints/step_00000024.h5");
+    const auto b = erg::io::read_checkpoint(t / "split/checkpoints/step_00000024.h5");
+    EXPECT_TRUE(a.sand_units == b.sand_units) << transport;
+    EXPECT_TRUE(a.bedrock_units == b.bedrock_units) << transport;
+    EXPECT_TRUE(a.airborne_units == b.airborne_units) << transport;
+    EXPECT_TRUE(a.vegetation == b.vegetation) << transport;
+    const auto sa = erg::io::read_snapshot(t / "straight/snapshots/step_00000024.h5");
+    const auto sb = erg::io::read_snapshot(t / "split/snapshots/step_00000024.h5");
+    EXPECT_TRUE(sa.sand == sb.sand && sa.wind == sb.wind && sa.bedrock == sb.bedrock) << transport;
+    EXPECT_EQ(sa.meta.sand_units_total, sb.meta.sand_units_total);
+  }
+}
+
+TEST(Cli, SigtermCheckpointsAndResumeFinishesTheSameRun) {
+  TempDir t;
+  std::string job = kSmallJob;
+  job.replace(job.find("\"steps\": 24, \"snapshot_every\": 8, \"checkpoint_every\": 8"), 55,
+              "\"steps\": 400, \"snapshot_every\": 50, \"checkpoint_every\": 100");
+  write(t / "job.json", job);
+  ASSERT_EQ(run(kErg + " run " + (t / "job.json") + " --out " + (t / "straight")).code, 0);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    ::execl(kWorker.c_str(), kWorker.c_str(), (t / "job.json").c_str(), "--out", (t / "stopped").c_str(), "--quiet",
+            static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  // Let it start stepping, then ask it to stop.
+  for (int i = 0; i < 400 && !fs::exists(t / "stopped/snapshots/step_00000050.h5"); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  ::kill(pid, SIGTERM);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  if (WEXITSTATUS(status) == 0) GTEST_SKIP() << "the run finished before the signal";
+  EXPECT_EQ(WEXITSTATUS(status), 128 + SIGTERM);
+  const Result r = run(kErg + " run --resume " + (t / "stopped"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(final_sand(t / "straight", "00000400") == final_sand(t / "stopped", "00000400"));
+}
+
+TEST(Cli, RefusesToOverwriteARunAndRejectsBadJobs) {
+  TempDir t;
+  write(t / "job.json", kSmallJob);
+  ASSERT_EQ(run(kErg + " run " + (t / "job.json") + " --out " + (t / "out") + " --steps 8").code, 0);
+  const auto before = fs::last_write_time(t / "out/checkpoints/step_00000008.h5");
+  Result r = run(kErg + " run " + (t / "job.json") + " --out " + (t / "out"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("already holds a run"), std::string::npos) << r.output;
+  EXPECT_EQ(fs::last_write_time(t / "out/checkpoints/step_00000008.h5"), before);
+
+  std::string bad = kSmallJob;
+  bad.replace(bad.find("\"nx\": 64"), 8, "\"nx\": -5");
+  write(t / "bad.json", bad);
+  r = run(kErg + " run " + (t / "bad.json") + " --out " + (t / "bad-out"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("domain.nx = -5"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("[8, 1048576]"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(t / "bad-out")) << "a rejected job created its output directory";
+
+  r = run(kErg + " run " + (t / "job.json") + " --out " + (t / "x") + " --steps -3");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("--steps -3"), std::string::npos) << r.output;
+  r = run(kErg + " run --resume " + (t / "nothing-here"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("no checkpoint"), std::string::npos) << r.output;
+}
+
+TEST(Cli, CheckAndParamsPrintTheSchema) {
+  TempDir t;
+  write(t / "job.json", kSmallJob);
+  Result r = run(kErg + " check " + (t / "job.json"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("\"venturi_k\": 0.005"), std::string::npos) << r.output;
+  r = run(kErg + " params");
+  ASSERT_EQ(r.code, 0);
+  EXPECT_NE(r.output.find("`model.repose_deg` | 33"), std::string::npos) << r.output;
+}
+
+TEST(Cli, BackendFlag) {
+  TempDir t;
+  write(t / "job.json", kSmallJob);
+  Result r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "a") + " --steps 2 --backend auto --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  // Machines here have no GPU: auto falls back with a log line; cuda refuses.
+  EXPECT_NE(r.output.find("using the CPU backend"), std::string::npos) << r.output;
+  r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "b") + " --steps 2 --backend cuda --quiet");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--backend cuda"), std::string::npos) << r.output;
+  r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "c") + " --backend gpu");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("expected auto, cpu or cuda"), std::string::npos) << r.output;
+}
+
+TEST(Cli, BenchPrintsJsonWithStageTimes) {
+  const Result r = run(kBench + " --scene A --size 512 --steps 2 --warmup 1 --threads 2 --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  for (const char* key : {"\"ms_per_step\"", "\"stage_ms\"", "\"avalanching\"", "\"cell_updates_per_s\"",
+                          "\"threads\":2", "\"backend\":\"cpu\"", "\"roofline_ms_per_step\""})
+    EXPECT_NE(r.output.find(key), std::string::npos) << key << " in " << r.output;
+}
+
+// Every example runs (for a few steps: the full runs are for users).
+class Example : public ::testing::TestWithParam<std::string> {};
+TEST_P(Example, Runs) {
+  TempDir t;
+  const std::string job = kExamples + "/" + GetParam() + ".json";
+  Result r = run(kErg + " check " + job);
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(kErg + " run " + job + " --out " + (t / "out") + " --steps 6 --snapshot-every 3");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(t / "out/previews/step_00000006.png"));
+  const erg::io::Snapshot s = erg::io::read_snapshot(t / "out/snapshots/step_00000006.h5");
+  EXPECT_EQ(s.meta.step, 6);
+}
+INSTANTIATE_TEST_SUITE_P(Examples, Example,
+                         ::testing::Values("barchans", "transverse", "linear", "star", "nabkha", "yardangs"));
+
+}  // namespace

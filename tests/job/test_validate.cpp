@@ -1,0 +1,579 @@
+// Validation: every bad spec is rejected with a message that names the field
+// (as a path), the bad value and what is allowed; parse errors name the field;
+// a valid spec has no problem; load_job_file names the file.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "job/spec.h"
+#include "job_test_util.h"
+
+namespace erg::job {
+namespace {
+
+using testing::join;
+using testing::kMinimalJob;
+using testing::parse_with_defaults;
+using testing::TempDir;
+
+// Success when one problem line contains every one of `parts`.
+::testing::AssertionResult HasProblem(const std::vector<std::string>& problems,
+                                      const std::vector<std::string>& parts) {
+  for (const auto& p : problems) {
+    bool all = true;
+    for (const auto& part : parts) all = all && p.find(part) != std::string::npos;
+    if (all) return ::testing::AssertionSuccess();
+  }
+  std::string want;
+  for (const auto& part : parts) want += " [" + part + "]";
+  return ::testing::AssertionFailure()
+         << "no problem line contains all of" << want << "; problems:\n"
+         << (problems.empty() ? "(none)\n" : join(problems));
+}
+
+// ---- one bad field (or pair of fields) at a time -----------------------------
+
+struct BadSpec {
+  std::string name;
+  std::string json;                    // job text; kMinimalJob when empty
+  std::function<void(JobSpec&)> edit;  // applied after the defaults
+  std::vector<std::string> expect;     // all in one problem line
+};
+
+void PrintTo(const BadSpec& c, std::ostream* os) {
+  *os << c.name;
+}
+
+class RejectsBadSpec : public ::testing::TestWithParam<BadSpec> {};
+
+TEST_P(RejectsBadSpec, NamesFieldValueAndRange) {
+  const BadSpec& c = GetParam();
+  JobSpec spec = parse_with_defaults(c.json.empty() ? kMinimalJob : c.json);
+  if (c.edit) c.edit(spec);
+  const auto problems = validate(spec);
+  ASSERT_FALSE(problems.empty()) << c.name << " was accepted";
+  EXPECT_TRUE(HasProblem(problems, c.expect));
+}
+
+const char* kDomain = R"("domain": {"nx": 64, "ny": 48, "cell_size_m": 1})";
+
+std::string job(const std::string& rest) {
+  return std::string("{") + kDomain + ", " + rest + "}";
+}
+
+using erg::v1::Pile;
+
+const std::vector<BadSpec> kBadSpecs = {
+    {"NegativeNx",
+     "",
+     [](JobSpec& s) { s.mutable_domain()->set_nx(-5); },
+     {"domain.nx = -5 is out of range; allowed [8, 1048576] cells"}},
+    {"ZeroNx",
+     "",
+     [](JobSpec& s) { s.mutable_domain()->set_nx(0); },
+     {"domain.nx = 0 is out of range; allowed [8, 1048576] cells"}},
+    {"ZeroNy",
+     "",
+     [](JobSpec& s) { s.mutable_domain()->set_ny(0); },
+     {"domain.ny = 0 is out of range; allowed [8, 1048576] cells"}},
+    {"HugeNy",
+     "",
+     [](JobSpec& s) { s.mutable_domain()->set_ny(2000000); },
+     {"domain.ny = 2000000 is out of range; allowed [8, 1048576] cells"}},
+    {"ZeroCellSize",
+     "",
+     [](JobSpec& s) { s.mutable_domain()->set_cell_size_m(0); },
+     {"domain.cell_size_m = 0 is out of range; allowed [0.01, 1000] m"}},
+    {"NegativeCellSize",
+     "",
+     [](JobSpec& s) { s.mutable_domain()->set_cell_size_m(-2.5); },
+     {"domain.cell_size_m = -2.5 is out of range; allowed [0.01, 1000] m"}},
+    // A subnormal value must be reported, not crash the formatting of the message.
+    {"SubnormalCellSize",
+     "",
+     [](JobSpec& s) { s.mutable_domain()->set_cell_size_m(1e-310); },
+     {"domain.cell_size_m = 1e-310 is out of range", "[0.01, 1000] m"}},
+    {"MissingNx",
+     R"({"domain": {"ny": 48, "cell_size_m": 1}, "wind": {"constant": {"speed_mps": 1}}})",
+     nullptr,
+     {"domain.nx is required", "allowed [8, 1048576] cells"}},
+    {"MissingCellSize",
+     R"({"domain": {"nx": 64, "ny": 48}, "wind": {"constant": {"speed_mps": 1}}})",
+     nullptr,
+     {"domain.cell_size_m is required", "allowed [0.01, 1000] m"}},
+    {"MissingDomainNy",
+     R"({"wind": {"constant": {"speed_mps": 1}}})",
+     nullptr,
+     {"domain.ny is required", "allowed [8, 1048576] cells"}},
+    {"NaNCellSize",
+     R"({"domain": {"nx": 64, "ny": 48, "cell_size_m": "NaN"}, "wind": {"constant": {"speed_mps": 1}}})",
+     nullptr,
+     {"domain.cell_size_m = nan is out of range; allowed [0.01, 1000] m"}},
+    {"InfiniteVenturi",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "model": {"venturi_k": "Infinity"})"),
+     nullptr,
+     {"model.venturi_k = inf is out of range; allowed [0, 1] 1/m"}},
+    {"NegInfiniteWindSpeed",
+     job(R"("wind": {"constant": {"speed_mps": "-Infinity"}})"),
+     nullptr,
+     {"wind.constant.speed_mps = -inf is out of range; allowed [0, 100] m/s"}},
+    {"NaNProbability",
+     job(R"("wind": {"rose": {"entries": [{"direction_deg": 0, "speed_mps": 5, "probability": "NaN"}]}})"),
+     nullptr,
+     {"wind.rose.entries[0].probability = nan is out of range; allowed [0, 1]"}},
+    {"HopTooLong",
+     "",
+     [](JobSpec& s) { s.mutable_model()->set_max_hop_m(20); },
+     {"model.max_hop_m = 20", "domain.cell_size_m = 1", "16 cells", "max_hop_m <= 16 m"}},
+    {"HopTooLongForSmallCells",
+     "",
+     [](JobSpec& s) { s.mutable_domain()->set_cell_size_m(0.25); },  // 8 m default > 4 m
+     {"model.max_hop_m = 8", "32 cells", "domain.cell_size_m = 0.25", "max_hop_m <= 4 m"}},
+    {"ShadowTooLong",
+     "",
+     [](JobSpec& s) { s.mutable_model()->set_shadow_radius_m(200); },
+     {"model.shadow_radius_m = 200", "allowed shadow_radius_m <= 128 m"}},
+    {"ShadowAngleMinAboveMax",
+     "",
+     [](JobSpec& s) {
+       s.mutable_model()->set_shadow_angle_min_deg(20);
+       s.mutable_model()->set_shadow_angle_max_deg(12);
+     },
+     {"model.shadow_angle_min_deg = 20", "model.shadow_angle_max_deg = 12"}},
+    {"ShadowAngleMinEqualsMax",
+     "",
+     [](JobSpec& s) {
+       s.mutable_model()->set_shadow_angle_min_deg(15);
+       s.mutable_model()->set_shadow_angle_max_deg(15);
+     },
+     {"model.shadow_angle_min_deg = 15", "must be below", "model.shadow_angle_max_deg = 15"}},
+    {"ShadowAngleTooSteep",
+     "",
+     [](JobSpec& s) { s.mutable_model()->set_shadow_angle_max_deg(90); },
+     {"model.shadow_angle_max_deg = 90 is out of range; allowed [0, 89] deg"}},
+    {"ReposeAbove89",
+     "",
+     [](JobSpec& s) { s.mutable_model()->set_repose_deg(95); },
+     {"model.repose_deg = 95 is out of range; allowed [1, 89] deg"}},
+    {"KcZeroExclusive",
+     "",
+     [](JobSpec& s) { s.mutable_model()->set_avalanche_kc(0); },
+     {"model.avalanche_kc = 0 is out of range; allowed (0, 1]"}},
+    {"NegativeSteps",
+     "",
+     [](JobSpec& s) { s.mutable_run()->set_steps(-1); },
+     {"run.steps = -1 is out of range; allowed [0, 1000000000] steps"}},
+    {"NegativeSeed",
+     "",
+     [](JobSpec& s) { s.set_seed(-7); },
+     {"seed = -7 is out of range; allowed [0, 9007199254740992]"}},
+    {"EmptyRose",
+     job(R"("wind": {"rose": {}})"),
+     nullptr,
+     {"wind.rose.entries is empty", "at least one entry"}},
+    {"RoseSumBelowOne",
+     job(R"("wind": {"rose": {"entries": [{"direction_deg": 0, "speed_mps": 5, "probability": 0.5},
+                                            {"direction_deg": 90, "speed_mps": 5, "probability": 0.4}]}})"),
+     nullptr,
+     {"wind.rose.entries[*].probability sum to 0.9", "must sum to 1"}},
+    {"RoseProbabilityAboveOne",
+     job(R"("wind": {"rose": {"entries": [{"direction_deg": 0, "speed_mps": 5, "probability": -0.5},
+                                            {"direction_deg": 90, "speed_mps": 5, "probability": 1.5}]}})"),
+     nullptr,
+     {"wind.rose.entries[1].probability = 1.5 is out of range; allowed [0, 1]"}},
+    {"RoseProbabilityNegative",
+     job(R"("wind": {"rose": {"entries": [{"direction_deg": 0, "speed_mps": 5, "probability": -0.5},
+                                            {"direction_deg": 90, "speed_mps": 5, "probability": 1.5}]}})"),
+     nullptr,
+     {"wind.rose.entries[0].probability = -0.5 is out of range; allowed [0, 1]"}},
+    {"RoseEntryMissingSpeed",
+     job(R"("wind": {"rose": {"entries": [{"direction_deg": 0, "probability": 1}]}})"),
+     nullptr,
+     {"wind.rose.entries[0].speed_mps is required", "[0, 100] m/s"}},
+    {"SeriesNotIncreasing",
+     job(R"("wind": {"series": {"keyframes": [{"step": 0, "speed_mps": 1}, {"step": 10, "speed_mps": 2},
+                                                {"step": 5, "speed_mps": 3}]}})"),
+     nullptr,
+     {"wind.series.keyframes[2].step = 5", "previous keyframe's step 10"}},
+    {"SeriesRepeatedStep",
+     job(R"("wind": {"series": {"keyframes": [{"step": 4, "speed_mps": 1}, {"step": 4, "speed_mps": 2}]}})"),
+     nullptr,
+     {"wind.series.keyframes[1].step = 4", "must be greater", "step 4"}},
+    {"SeriesEmpty", job(R"("wind": {"series": {}})"), nullptr, {"wind.series.keyframes is empty"}},
+    {"SeriesPeriodTooShort",
+     job(R"("wind": {"series": {"keyframes": [{"step": 0, "speed_mps": 1}, {"step": 30, "speed_mps": 2}],
+                                "period_steps": 30}})"),
+     nullptr,
+     {"wind.series.period_steps = 30", "last keyframe's step 30"}},
+    {"MissingWind",
+     R"({"domain": {"nx": 64, "ny": 48, "cell_size_m": 1}})",
+     nullptr,
+     {"wind is required"}},
+    {"WindWithoutRegime",
+     job(R"("wind": {})"),
+     nullptr,
+     {"wind has no regime", "constant, rose, series, bidirectional"}},
+    {"BidirectionalAngleTooWide",
+     job(R"("wind": {"bidirectional": {"speed_mps": 5, "angle_deg": 200}})"),
+     nullptr,
+     {"wind.bidirectional.angle_deg = 200 is out of range; allowed [0, 180] deg"}},
+    {"EventWithoutAction",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "events": [{"step": 3}])"),
+     nullptr,
+     {"events[0] has no action", "sand, bedrock, vegetation, wind"}},
+    {"EventWithoutStep",
+     job(R"("wind": {"constant": {"speed_mps": 1}},
+            "events": [{"sand": {"x_m": 1, "y_m": 2, "radius_m": 3, "height": 1}}])"),
+     nullptr,
+     {"events[0].step is required", "[0, 1000000000] steps"}},
+    {"EventWindRoseEmpty",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "events": [{"step": 0, "sand":
+            {"x_m": 1, "y_m": 2, "radius_m": 3, "height": 1}}, {"step": 9, "wind": {"rose": {}}}])"),
+     nullptr,
+     {"events[1].wind.rose.entries is empty"}},
+    {"VegetationBothRectAndDisk",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "events": [{"step": 1, "vegetation":
+            {"x_m": 1, "y_m": 2, "width_m": 3, "height_m": 4, "radius_m": 5, "density": 0.5}}])"),
+     nullptr,
+     {"events[0].vegetation must give either", "radius_m"}},
+    {"VegetationNeitherRectNorDisk",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "events": [{"step": 1, "vegetation":
+            {"x_m": 1, "y_m": 2, "density": 0.5}}])"),
+     nullptr,
+     {"events[0].vegetation must give either", "width_m and height_m"}},
+    {"VegetationHalfRect",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "events": [{"step": 1, "vegetation":
+            {"x_m": 1, "y_m": 2, "width_m": 3, "density": 0.5}}])"),
+     nullptr,
+     {"events[0].vegetation rectangle needs both width_m and height_m"}},
+    {"VegetationDensityAboveOne",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "events": [{"step": 1, "vegetation":
+            {"x_m": 1, "y_m": 2, "radius_m": 3, "density": 1.25}}])"),
+     nullptr,
+     {"events[0].vegetation.density = 1.25 is out of range; allowed [0, 1]"}},
+    {"SandBrushFalloffAboveRadius",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "events": [{"step": 2, "sand":
+            {"x_m": 1, "y_m": 2, "radius_m": 5, "falloff_m": 6, "height": 1}}])"),
+     nullptr,
+     {"events[0].sand.falloff_m = 6 exceeds radius_m = 5", "allowed [0, radius_m]"}},
+    {"BedrockBrushFalloffAboveRadius",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "events": [{"step": 2, "bedrock":
+            {"x_m": 1, "y_m": 2, "radius_m": 2.5, "falloff_m": 3.5, "height": -1}}])"),
+     nullptr,
+     {"events[0].bedrock.falloff_m = 3.5 exceeds radius_m = 2.5"}},
+    {"UniformMinAboveMax",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {"sand": {"uniform": {"min": 3, "max": 2}}})"),
+     nullptr,
+     {"layers.sand.uniform.min = 3 exceeds max = 2", "min <= max"}},
+    {"UniformDefaultMaxBelowMin",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {"bedrock": {"uniform": {"min": 1.5}}})"),
+     nullptr,
+     {"layers.bedrock.uniform.min = 1.5 exceeds max = 1"}},
+    {"PileRadiusZero",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {"sand": {"piles": [
+            {"x_m": 1, "y_m": 1, "height": 1, "radius_m": 4}, {"x_m": 1, "y_m": 1, "height": 1, "radius_m": 0}]}})"),
+     nullptr,
+     {"layers.sand.piles[1].radius_m = 0 is out of range; allowed (0, 10000000] m"}},
+    {"PatchesWithoutCoverage",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {"sand": {"patches": {"radius_m": 4}}})"),
+     nullptr,
+     {"layers.sand.patches.coverage is required", "[0, 0.99]"}},
+    {"FbmTooManyOctaves",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {"bedrock": {"fbm": {"octaves": 17}}})"),
+     nullptr,
+     {"layers.bedrock.fbm.octaves = 17 is out of range; allowed [1, 16]"}},
+    {"MapWithoutPath",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {"vegetation": {"map": {"scale": 2}}})"),
+     nullptr,
+     {"layers.vegetation.map.path is empty"}},
+};
+
+INSTANTIATE_TEST_SUITE_P(Validate, RejectsBadSpec, ::testing::ValuesIn(kBadSpecs),
+                         [](const ::testing::TestParamInfo<BadSpec>& i) { return i.param.name; });
+
+// ---- specs that are fine ------------------------------------------------------
+
+TEST(Validate, MinimalSpecHasNoProblem) {
+  const auto problems = validate(testing::minimal_spec());
+  EXPECT_TRUE(problems.empty()) << join(problems);
+}
+
+TEST(Validate, RichSpecHasNoProblem) {
+  const JobSpec spec = parse_with_defaults(R"({
+    "name": "rich", "transport": "stochastic", "seed": 42,
+    "domain": {"nx": 64, "ny": 48, "cell_size_m": 0.5},
+    "layers": {
+      "bedrock": {"constant": 2, "fbm": {"amplitude": 3, "ridged": true, "anisotropy": 4}},
+      "sand": {"uniform": {"min": 0, "max": 0.5}, "patches": {"coverage": 0.3, "radius_m": 3},
+               "piles": [{"x_m": 5, "y_m": 5, "height": 2, "radius_m": 3, "shape": "GAUSSIAN"}]},
+      "vegetation": {"constant": 0.1}
+    },
+    "wind": {"rose": {"entries": [{"direction_deg": 0, "speed_mps": 5, "probability": 0.25},
+                                   {"direction_deg": 90, "speed_mps": 6, "probability": 0.75}],
+                       "hold_steps": 5, "sector_width_deg": 30}},
+    "events": [
+      {"step": 10, "sand": {"x_m": 1, "y_m": 1, "radius_m": 2, "falloff_m": 2, "height": 1}},
+      {"step": 11, "bedrock": {"x_m": 1, "y_m": 1, "radius_m": 2, "height": -1}},
+      {"step": 12, "vegetation": {"x_m": 1, "y_m": 1, "width_m": 5, "height_m": 0, "density": 1}},
+      {"step": 13, "vegetation": {"x_m": 1, "y_m": 1, "radius_m": 5, "density": 0}},
+      {"step": 14, "wind": {"series": {"keyframes": [{"step": 0, "speed_mps": 1},
+                                                     {"step": 9, "speed_mps": 2}], "period_steps": 10}}},
+      {"step": 15, "wind": {"bidirectional": {"speed_mps": 7, "angle_deg": 120, "flux_ratio": 3}}}
+    ],
+    "model": {"max_hop_m": 8, "shadow_radius_m": 64, "repose_deg": 34},
+    "run": {"steps": 0, "snapshot_every": 0}
+  })");
+  const auto problems = validate(spec);
+  EXPECT_TRUE(problems.empty()) << join(problems);
+}
+
+TEST(Validate, ProbabilitiesSummingToOneWithinToleranceAreAccepted) {
+  JobSpec spec = parse_with_defaults(job(R"("wind": {"rose": {"entries": [
+      {"direction_deg": 0, "speed_mps": 5, "probability": 0.1},
+      {"direction_deg": 10, "speed_mps": 5, "probability": 0.2},
+      {"direction_deg": 20, "speed_mps": 5, "probability": 0.7}]}})"));
+  EXPECT_TRUE(validate(spec).empty()) << join(validate(spec));
+}
+
+TEST(Validate, HopOfExactlySixteenCellsIsAllowed) {
+  JobSpec spec = testing::minimal_spec();
+  spec.mutable_domain()->set_cell_size_m(0.5);
+  spec.mutable_model()->set_max_hop_m(8);  // 16 cells
+  EXPECT_TRUE(validate(spec).empty()) << join(validate(spec));
+  spec.mutable_model()->set_max_hop_m(8.01);
+  EXPECT_TRUE(HasProblem(validate(spec), {"model.max_hop_m = 8.01", "max_hop_m <= 8 m"}));
+}
+
+TEST(Validate, ReportsEveryRangeProblemAtOnce) {
+  JobSpec spec = testing::minimal_spec();
+  spec.mutable_domain()->set_nx(-5);
+  spec.mutable_model()->set_repose_deg(95);
+  spec.mutable_run()->set_steps(-3);
+  const auto problems = validate(spec);
+  EXPECT_EQ(problems.size(), 3u) << join(problems);
+  EXPECT_TRUE(HasProblem(problems, {"domain.nx = -5"}));
+  EXPECT_TRUE(HasProblem(problems, {"model.repose_deg = 95"}));
+  EXPECT_TRUE(HasProblem(problems, {"run.steps = -3"}));
+}
+
+TEST(Validate, MissingDomainReportsAllThreeFields) {
+  const auto problems =
+      validate(parse_with_defaults(R"({"wind": {"constant": {"speed_mps": 1}}})"));
+  EXPECT_TRUE(HasProblem(problems, {"domain.nx is required"}));
+  EXPECT_TRUE(HasProblem(problems, {"domain.ny is required"}));
+  EXPECT_TRUE(HasProblem(problems, {"domain.cell_size_m is required"}));
+}
+
+// ---- parse errors ---------------------------------------------------------------
+
+std::string parse_error(const std::string& text, const std::string& origin = "jobs/a.json") {
+  try {
+    parse_json(text, origin);
+  } catch (const SpecError& e) {
+    EXPECT_EQ(e.problems().size(), 1u);
+    return e.what();
+  }
+  return "(parsed)";
+}
+
+TEST(Parse, UnknownEnumNameNamesTheFieldAndValue) {
+  const std::string e = parse_error(job(R"("transport": "fast")"));
+  EXPECT_NE(e.find("jobs/a.json"), std::string::npos) << e;
+  EXPECT_NE(e.find("transport"), std::string::npos) << e;
+  EXPECT_NE(e.find("fast"), std::string::npos) << e;
+}
+
+TEST(Parse, UnknownNestedEnumNameNamesTheFieldPath) {
+  const std::string e = parse_error(
+      job(R"("layers": {"sand": {"piles": [{"x_m": 1, "y_m": 1, "height": 1, "radius_m": 1,
+                                            "shape": "pyramid"}]}})"));
+  EXPECT_NE(e.find("layers.sand.piles[0].shape"), std::string::npos) << e;
+  EXPECT_NE(e.find("pyramid"), std::string::npos) << e;
+}
+
+TEST(Parse, EnumNamesAreCaseInsensitive) {
+  EXPECT_EQ(parse_json(job(R"("transport": "stochastic")")).transport(), JobSpec::STOCHASTIC);
+  EXPECT_EQ(parse_json(job(R"("transport": "Expected")")).transport(), JobSpec::EXPECTED);
+}
+
+TEST(Parse, UnknownFieldNamesTheField) {
+  const std::string e = parse_error(R"({"domain": {"nx": 64, "nyy": 48, "cell_size_m": 1}})");
+  EXPECT_NE(e.find("jobs/a.json"), std::string::npos) << e;
+  EXPECT_NE(e.find("nyy"), std::string::npos) << e;
+  EXPECT_NE(e.find("domain"), std::string::npos) << e;
+  const std::string top = parse_error(job(R"("wnd": {})"));
+  EXPECT_NE(top.find("wnd"), std::string::npos) << top;
+}
+
+TEST(Parse, WrongJsonTypeNamesTheField) {
+  std::string e = parse_error(R"({"domain": {"nx": "abc", "ny": 48, "cell_size_m": 1}})");
+  EXPECT_NE(e.find("domain.nx"), std::string::npos) << e;
+  EXPECT_NE(e.find("abc"), std::string::npos) << e;
+  e = parse_error(R"({"domain": {"nx": 1.5, "ny": 48, "cell_size_m": 1}})");
+  EXPECT_NE(e.find("domain.nx"), std::string::npos) << e;
+  e = parse_error(R"({"domain": 5})");
+  EXPECT_NE(e.find("domain"), std::string::npos) << e;
+  e = parse_error(job(R"("model": {"repose_deg": true})"));
+  EXPECT_NE(e.find("model.repose_deg"), std::string::npos) << e;
+}
+
+TEST(Parse, SyntaxErrorNamesTheOrigin) {
+  const std::string e = parse_error(R"({"domain": {"nx": 64,)", "broken.json");
+  EXPECT_EQ(e.rfind("broken.json", 0), 0u) << e;
+  EXPECT_NE(e.find("not a valid job spec"), std::string::npos) << e;
+}
+
+TEST(Parse, TwoWindRegimesAreRejected) {
+  const std::string e =
+      parse_error(job(R"("wind": {"constant": {"speed_mps": 1}, "rose": {"entries": []}})"));
+  EXPECT_NE(e.find("wind"), std::string::npos) << e;
+  EXPECT_NE(e.find("rose"), std::string::npos) << e;
+}
+
+TEST(Parse, AcceptsNaNAndInfinityStringsForDoubles) {
+  const JobSpec s = parse_json(job(R"("model": {"venturi_k": "NaN", "slab_m": "-Infinity"})"));
+  EXPECT_TRUE(std::isnan(s.model().venturi_k()));
+  EXPECT_EQ(s.model().slab_m(), -std::numeric_limits<double>::infinity());
+}
+
+// ---- map files -------------------------------------------------------------------
+
+std::string map_job(const std::string& layer, const std::string& map) {
+  return job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {")" + layer + R"(": {"map": )" +
+             map + "}}");
+}
+
+TEST(ValidateMaps, MissingFileNamesFieldAndFile) {
+  TempDir dir;
+  const auto problems =
+      validate(parse_with_defaults(map_job("sand", R"({"path": "maps/none.h5"})")), dir.str());
+  EXPECT_TRUE(HasProblem(
+      problems, {"layers.sand.map.path", "maps/none.h5", "not found", dir.file("maps/none.h5")}));
+}
+
+TEST(ValidateMaps, Hdf5OfWrongShapeNamesBothSizes) {
+  TempDir dir;
+  testing::write_h5_doubles(dir.file("small.h5"), "/data", 10, 12, std::vector<double>(120, 1.0));
+  const auto problems =
+      validate(parse_with_defaults(map_job("bedrock", R"({"path": "small.h5"})")), dir.str());
+  EXPECT_TRUE(HasProblem(problems, {"layers.bedrock.map.path", "small.h5", "10 x 12", "64 x 48"}));
+}
+
+TEST(ValidateMaps, Hdf5OfRightShapeIsAccepted) {
+  TempDir dir;
+  testing::write_h5_doubles(dir.file("ok.h5"), "/elev/m", 64, 48,
+                            std::vector<double>(64 * 48, 1.0));
+  const auto problems = validate(
+      parse_with_defaults(map_job("bedrock", R"({"path": "ok.h5", "dataset": "/elev/m"})")),
+      dir.str());
+  EXPECT_TRUE(problems.empty()) << join(problems);
+  // The same file with a dataset that does not exist.
+  const auto bad =
+      validate(parse_with_defaults(map_job("bedrock", R"({"path": "ok.h5", "dataset": "/nope"})")),
+               dir.str());
+  EXPECT_TRUE(HasProblem(bad, {"layers.bedrock.map.path", "ok.h5", "cannot be read"}));
+}
+
+TEST(ValidateMaps, Png16OfWrongShapeNamesBothSizes) {
+  TempDir dir;
+  testing::write_png16_raw(dir.file("wide.png"), 48, 64, std::vector<std::uint16_t>(48 * 64, 7));
+  const auto problems =
+      validate(parse_with_defaults(map_job("vegetation", R"({"path": "wide.png"})")), dir.str());
+  EXPECT_TRUE(
+      HasProblem(problems, {"layers.vegetation.map.path", "wide.png", "48 x 64", "64 x 48"}));
+}
+
+TEST(ValidateMaps, Png16OfRightShapeIsAccepted) {
+  TempDir dir;
+  testing::write_png16_raw(dir.file("ok.png"), 64, 48, std::vector<std::uint16_t>(64 * 48, 7));
+  const auto problems =
+      validate(parse_with_defaults(map_job("vegetation", R"({"path": "ok.png"})")), dir.str());
+  EXPECT_TRUE(problems.empty()) << join(problems);
+}
+
+TEST(ValidateMaps, UnknownExtensionAsksForAFormat) {
+  TempDir dir;
+  testing::write_text(dir.file("m.dat"), "x");
+  const auto problems =
+      validate(parse_with_defaults(map_job("resistance", R"({"path": "m.dat"})")), dir.str());
+  EXPECT_TRUE(HasProblem(problems, {"layers.resistance.map.format", "m.dat"}));
+}
+
+// ---- load_job_file ---------------------------------------------------------------
+
+TEST(LoadJobFile, LoadsAValidFileWithDefaults) {
+  TempDir dir;
+  testing::write_text(dir.file("ok.json"), kMinimalJob);
+  const JobSpec spec = load_job_file(dir.file("ok.json"));
+  EXPECT_EQ(spec.domain().nx(), 64);
+  EXPECT_EQ(spec.model().repose_deg(), 33);
+}
+
+TEST(LoadJobFile, ProblemsNameTheFile) {
+  TempDir dir;
+  const std::string path = dir.file("bad_job.json");
+  testing::write_text(path, R"({"domain": {"nx": -5, "ny": 48, "cell_size_m": 1},
+                              "wind": {"constant": {"speed_mps": 1}}, "model": {"repose_deg": 95}})");
+  try {
+    load_job_file(path);
+    FAIL() << "accepted";
+  } catch (const SpecError& e) {
+    ASSERT_EQ(e.problems().size(), 2u) << e.what();
+    for (const auto& p : e.problems()) EXPECT_EQ(p.rfind(path + ": ", 0), 0u) << p;
+    EXPECT_TRUE(HasProblem(e.problems(), {path, "domain.nx = -5", "[8, 1048576] cells"}));
+    EXPECT_TRUE(HasProblem(e.problems(), {path, "model.repose_deg = 95"}));
+  }
+}
+
+TEST(LoadJobFile, ParseErrorNamesTheFile) {
+  TempDir dir;
+  const std::string path = dir.file("typo.json");
+  testing::write_text(path, job(R"("transport": "fast")"));
+  try {
+    load_job_file(path);
+    FAIL() << "accepted";
+  } catch (const SpecError& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("transport"), std::string::npos) << e.what();
+  }
+}
+
+TEST(LoadJobFile, MissingFileNamesTheFile) {
+  TempDir dir;
+  const std::string path = dir.file("absent.json");
+  try {
+    load_job_file(path);
+    FAIL() << "accepted";
+  } catch (const SpecError& e) {
+    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+  }
+}
+
+TEST(LoadJobFile, RelativeMapPathsAreResolvedAgainstTheJobDirectory) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.file("jobs/maps"));
+  testing::write_h5_doubles(dir.file("jobs/maps/b.h5"), "/data", 64, 48,
+                            std::vector<double>(64 * 48, 0.5));
+  testing::write_text(dir.file("jobs/j.json"), map_job("bedrock", R"({"path": "maps/b.h5"})"));
+  EXPECT_NO_THROW(load_job_file(dir.file("jobs/j.json")));
+  EXPECT_EQ(base_dir_of(dir.file("jobs/j.json")), dir.file("jobs"));
+  EXPECT_EQ(base_dir_of("j.json"), ".");
+  EXPECT_EQ(resolve_path("maps/b.h5", "/x/jobs"), "/x/jobs/maps/b.h5");
+  EXPECT_EQ(resolve_path("/abs/b.h5", "/x/jobs"), "/abs/b.h5");
+  // Moved next to a job elsewhere, the same relative path is missing.
+  testing::write_text(dir.file("j2.json"), map_job("bedrock", R"({"path": "maps/b.h5"})"));
+  try {
+    load_job_file(dir.file("j2.json"));
+    FAIL() << "accepted";
+  } catch (const SpecError& e) {
+    EXPECT_TRUE(HasProblem(
+        e.problems(), {dir.file("j2.json"), "layers.bedrock.map.path", "maps/b.h5", "not found"}));
+  }
+}
+
+}  // namespace
+}  // namespace erg::job

@@ -1,0 +1,87 @@
+// Helpers for simulation tests: jobs from JSON text, runs, field access.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "job/spec.h"
+#include "sim/simulation.h"
+
+namespace erg::test {
+
+// A defaults-filled, validated spec from JSON text; fails the test if invalid.
+inline erg::v1::JobSpec spec_from(const std::string& json) {
+  erg::v1::JobSpec spec = job::parse_json(json, "test job");
+  job::apply_defaults(spec);
+  const auto problems = job::validate(spec);
+  for (const auto& p : problems) ADD_FAILURE() << p;
+  return spec;
+}
+
+inline RunOptions cpu_threads(int threads) {
+  RunOptions o;
+  o.backend = BackendKind::kCpu;
+  o.threads = threads;
+  return o;
+}
+
+// Owned cells of a field, row-major [ny][nx].
+template <class T>
+std::vector<T> owned(const Field<T>& f) {
+  const TileGeom& g = f.geom();
+  std::vector<T> v(static_cast<size_t>(g.nx) * g.ny);
+  for (int y = 0; y < g.ny; ++y)
+    for (int x = 0; x < g.nx; ++x) v[static_cast<size_t>(y) * g.nx + x] = f(x, y);
+  return v;
+}
+
+// Height (bedrock + sand) in metres, owned cells.
+inline std::vector<double> heights_m(const TileState& s) {
+  const TileGeom& g = s.geom;
+  std::vector<double> h(static_cast<size_t>(g.nx) * g.ny);
+  for (int y = 0; y < g.ny; ++y)
+    for (int x = 0; x < g.nx; ++x)
+      h[static_cast<size_t>(y) * g.nx + x] = units_to_m_d(s.bedrock(x, y) + s.sand(x, y));
+  return h;
+}
+
+inline std::vector<double> sand_m(const TileState& s) {
+  const TileGeom& g = s.geom;
+  std::vector<double> h(static_cast<size_t>(g.nx) * g.ny);
+  for (int y = 0; y < g.ny; ++y)
+    for (int x = 0; x < g.nx; ++x) h[static_cast<size_t>(y) * g.nx + x] = units_to_m_d(s.sand(x, y));
+  return h;
+}
+
+// Centroid of a mass field on a periodic axis (circular mean), in cells.
+inline double periodic_centroid_x(const std::vector<double>& m, int nx, int ny) {
+  double c = 0, s = 0;
+  const double k = 2 * M_PI / nx;
+  for (int y = 0; y < ny; ++y)
+    for (int x = 0; x < nx; ++x) {
+      const double w = m[static_cast<size_t>(y) * nx + x];
+      c += w * std::cos(k * (x + 0.5));
+      s += w * std::sin(k * (x + 0.5));
+    }
+  double a = std::atan2(s, c) / k - 0.5;
+  if (a < 0) a += nx;
+  return a;
+}
+inline double periodic_centroid_y(const std::vector<double>& m, int nx, int ny) {
+  double c = 0, s = 0;
+  const double k = 2 * M_PI / ny;
+  for (int y = 0; y < ny; ++y)
+    for (int x = 0; x < nx; ++x) {
+      const double w = m[static_cast<size_t>(y) * nx + x];
+      c += w * std::cos(k * (y + 0.5));
+      s += w * std::sin(k * (y + 0.5));
+    }
+  double a = std::atan2(s, c) / k - 0.5;
+  if (a < 0) a += ny;
+  return a;
+}
+
+}  // namespace erg::test
