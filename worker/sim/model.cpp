@@ -11,10 +11,6 @@ namespace {
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 }
 
-int Model::halo_saltation() const {
-  return static_cast<int>(std::ceil(saltation.max_hop_m / tile.cell_m)) + 2;
-}
-
 int coarse_factor(int n, double cell_m, double max_m) {
   int best = 1;
   for (int c = 1; c <= n; ++c)

@@ -3,6 +3,7 @@
 // POD structs by value.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 
 #include "core/grid.h"
@@ -41,7 +42,9 @@ struct Model {
 
   // Ghost cells each stage reads (DESIGN.md section 4).
   int halo_shadow() const { return shadow.steps + 2; }
-  int halo_saltation() const;  // hop reach + bilinear footprint
+  int halo_saltation() const {  // hop reach + bilinear footprint
+    return static_cast<int>(std::ceil(saltation.max_hop_m / tile.cell_m)) + 2;
+  }
   static constexpr int kHaloStencil = 1;  // reptation, avalanching
 };
 

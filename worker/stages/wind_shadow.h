@@ -29,6 +29,16 @@ struct Params {
   float tan_min, tan_max;
 };
 
+// True when the shadow is certainly 0: `hmax` bounds every height the march
+// can sample (bilinear samples are convex combinations), so no angle reaches
+// tan_min. The small margin covers the rounding of a float bilinear sample
+// and of the division; a cell it selects is exactly one shadow() returns 0
+// for, so skipping the march changes nothing.
+ERG_HD bool certainly_unshadowed(float hmax, float h0, const Params& p) {
+  const float margin = 1e-6f * (fabsf(hmax) + fabsf(h0)) + 1e-6f;
+  return (hmax - h0) + margin < p.tan_min * p.cell_m;
+}
+
 ERG_HD float shadow(const float* h_base, int pitch, int x, int y, Vec2 w, const Params& p) {
   const float speed = length(w);
   if (!(speed > 0.0f) || p.steps <= 0) return 0.0f;

@@ -53,21 +53,31 @@ ERG_HD double gaussian_transfer(double kx, double ky, double sigma_m) {
   return exp(-2.0 * pi2 * sigma_m * sigma_m * (kx * kx + ky * ky));
 }
 
-// Bilinear sample of a periodic coarse field at fine cell centre (x, y)
-// (global cell coordinates). Coarse cell (I, J) covers fine cells
-// [I*cx, (I+1)*cx) x [J*cy, (J+1)*cy), centre at ((I + 0.5) cx, (J + 0.5) cy).
+// Bilinear interpolation of a periodic coarse field at fine cell centres.
+// Coarse cell I covers fine cells [I*c, (I+1)*c) along an axis, centred at
+// (I + 0.5) c. Along one axis, fine cell g falls between coarse centres i0
+// and i1 with weight t towards i1; this depends only on the column (or row),
+// so the CPU computes it once per tile and the GPU per cell, with this code.
+struct Axis {
+  int i0, i1;  // coarse indices, wrapped
+  float t;     // weight of i1
+};
+ERG_HD Axis coarse_axis(int g, int c, int n) {
+  const float f = (static_cast<float>(g) + 0.5f) / static_cast<float>(c) - 0.5f;
+  const float f0 = floorf(f);
+  int i0 = static_cast<int>(f0);
+  i0 = (i0 % n + n) % n;
+  return {i0, (i0 + 1) % n, f - f0};
+}
+ERG_HD float sample_at(const float* coarse, int nx, Axis ax, Axis ay) {
+  const float a = coarse[ay.i0 * nx + ax.i0], b = coarse[ay.i0 * nx + ax.i1];
+  const float c = coarse[ay.i1 * nx + ax.i0], d = coarse[ay.i1 * nx + ax.i1];
+  return (1.0f - ay.t) * ((1.0f - ax.t) * a + ax.t * b) + ay.t * ((1.0f - ax.t) * c + ax.t * d);
+}
+// The same, at global fine cell (gx, gy) of a coarse grid cnx x cny with
+// cx x cy fine cells per coarse cell.
 ERG_HD float sample_coarse(const float* coarse, int cnx, int cny, int cx, int cy, int gx, int gy) {
-  const float fx = (static_cast<float>(gx) + 0.5f) / static_cast<float>(cx) - 0.5f;
-  const float fy = (static_cast<float>(gy) + 0.5f) / static_cast<float>(cy) - 0.5f;
-  const float x0f = floorf(fx), y0f = floorf(fy);
-  const float tx = fx - x0f, ty = fy - y0f;
-  int x0 = static_cast<int>(x0f), y0 = static_cast<int>(y0f);
-  x0 = (x0 % cnx + cnx) % cnx;
-  y0 = (y0 % cny + cny) % cny;
-  const int x1 = (x0 + 1) % cnx, y1 = (y0 + 1) % cny;
-  const float a = coarse[y0 * cnx + x0], b = coarse[y0 * cnx + x1];
-  const float c = coarse[y1 * cnx + x0], d = coarse[y1 * cnx + x1];
-  return (1.0f - ty) * ((1.0f - tx) * a + tx * b) + ty * ((1.0f - tx) * c + tx * d);
+  return sample_at(coarse, cnx, coarse_axis(gx, cx, cnx), coarse_axis(gy, cy, cny));
 }
 
 }  // namespace erg::wind_warping

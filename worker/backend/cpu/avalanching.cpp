@@ -86,7 +86,8 @@ void inflow_row(const float* h, const float* tan_l, float tan_l_const, const flo
 
 }  // namespace
 
-int CpuBackend::avalanche(bool bedrock, int iterations) {
+int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
+  if (settled) *settled = false;
   if (iterations <= 0) return 0;
   const Offsets off(g_.pitch);
   const int n = g_.nx;
@@ -123,6 +124,7 @@ int CpuBackend::avalanche(bool bedrock, int iterations) {
       bool larger_kc_later = false;
       for (int j = it + 1; j <= iterations; ++j)
         larger_kc_later |= avalanching::kc_for(j, iterations, kc_full, m_.kc_damped) > kc;
+      if (settled) *settled = !stuck;
       if (!stuck || !larger_kc_later) break;
       continue;
     }
@@ -166,9 +168,17 @@ int CpuBackend::avalanche(bool bedrock, int iterations) {
 
 int CpuBackend::avalanche_sand() {
   if (m_.avalanche_iterations <= 0) return 0;
-  return avalanche(false, m_.avalanche_iterations);
+  return avalanche(false, m_.avalanche_iterations, nullptr);
 }
 
-void CpuBackend::avalanche_bedrock() { avalanche(true, m_.bedrock_iterations); }
+// Bedrock only changes by abrasion and events. Once an avalanche found it
+// settled (nothing moved, no donor waiting for a larger k_c), running it again
+// on the same bedrock is the identity, so it is skipped until bedrock changes.
+void CpuBackend::avalanche_bedrock() {
+  if (!bedrock_changed_) return;
+  bool settled = false;
+  avalanche(true, m_.bedrock_iterations, &settled);
+  bedrock_changed_ = !settled;
+}
 
 }  // namespace erg::cpu

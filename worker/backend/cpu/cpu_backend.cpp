@@ -82,6 +82,7 @@ void CpuBackend::upload(const TileState& s) {
   airborne_ = s.airborne;
   vegetation_ = s.vegetation;
   resistance_ = s.resistance;
+  bedrock_changed_ = true;
   update_repose();
 }
 
@@ -153,6 +154,7 @@ total_t CpuBackend::apply_bedrock_brush(const events::Brush& b) {
       change += d;
     }
   }
+  bedrock_changed_ = true;
   return change;
 }
 

@@ -9,6 +9,7 @@
 
 #include "backend/backend.h"
 #include "core/field.h"
+#include "stages/wind_warping.h"
 
 namespace erg::cpu {
 
@@ -66,7 +67,9 @@ class CpuBackend final : public Backend {
  private:
   void update_repose();  // tan_l from vegetation
   // One avalanching sweep structure shared by sand and bedrock (avalanching.cpp).
-  int avalanche(bool bedrock, int iterations);
+  // settled (optional): set when an iteration moved nothing and no donor is
+  // stuck, i.e. running again on the same heights would be the identity.
+  int avalanche(bool bedrock, int iterations, bool* settled);
 
   Model m_;
   TileGeom g_;
@@ -74,6 +77,7 @@ class CpuBackend final : public Backend {
   // exact state
   Field<units_t> bedrock_, sand_, airborne_;
   Field<float> vegetation_, resistance_;
+  bool bedrock_changed_ = true;  // since bedrock avalanching last found it settled
   // derived each step
   Field<float> height_m_;   // b + s in metres, halo filled for the shadow march
   Field<float> wind_x_, wind_y_, shadow_;
@@ -88,6 +92,8 @@ class CpuBackend final : public Backend {
   CoarseSmoother smoother_;
   std::vector<double> coarse_h_;
   std::vector<float> grad_x_[2], grad_y_[2];
+  std::vector<wind_warping::Axis> axis_x_, axis_y_;  // coarse interpolation stencils
+  std::vector<float> block_max_;                     // shadow: height bounds per block
 };
 
 }  // namespace erg::cpu

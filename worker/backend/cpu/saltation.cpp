@@ -79,7 +79,8 @@ void CpuBackend::saltation(std::int64_t step) {
   fold_halo_periodic(landed_, reach);
 
   // (3) Deposit, bounce, abrade; record the reptation strength.
-#pragma omp parallel for num_threads(threads_) schedule(static)
+  bool abraded = false;
+#pragma omp parallel for num_threads(threads_) schedule(static) reduction(|| : abraded)
   for (int y = 0; y < g_.ny; ++y) {
     const units_t* in = landed_.row(y);
     units_t* s = sand_.row(y);
@@ -101,8 +102,10 @@ void CpuBackend::saltation(std::int64_t step) {
       b[x] -= im.abraded;
       air[x] = im.bounced;
       sr[x] = im.reptation_m;
+      abraded = abraded || im.abraded > 0;
     }
   }
+  if (abraded) bedrock_changed_ = true;
 }
 
 }  // namespace erg::cpu

@@ -102,18 +102,26 @@ void CpuBackend::wind(Vec2 a) {
 
   const float k = m_.venturi_k;
   const wind_warping::Params wp = m_.warp;
+  // Interpolation stencils depend only on the column or the row.
+  if (axis_x_.empty()) {
+    for (int x = 0; x < g_.nx; ++x) axis_x_.push_back(wind_warping::coarse_axis(g_.x0 + x, c.cx, c.nx));
+    for (int y = 0; y < g_.ny; ++y) axis_y_.push_back(wind_warping::coarse_axis(g_.y0 + y, c.cy, c.ny));
+  }
+  const float* gx0 = grad_x_[0].data();
+  const float* gy0 = grad_y_[0].data();
+  const float* gx1 = grad_x_[1].data();
+  const float* gy1 = grad_y_[1].data();
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y) {
     const float* h = height_m_.row(y);
     float* wx = wind_x_.row(y);
     float* wy = wind_y_.row(y);
+    const wind_warping::Axis ay = axis_y_[static_cast<size_t>(y)];
     for (int x = 0; x < g_.nx; ++x) {
-      const int gx = g_.x0 + x, gy = g_.y0 + y;
+      const wind_warping::Axis ax = axis_x_[static_cast<size_t>(x)];
       const Vec2 v = venturi::wind(a, h[x], k);
-      const Vec2 gl{wind_warping::sample_coarse(grad_x_[0].data(), c.nx, c.ny, c.cx, c.cy, gx, gy),
-                    wind_warping::sample_coarse(grad_y_[0].data(), c.nx, c.ny, c.cx, c.cy, gx, gy)};
-      const Vec2 gs{wind_warping::sample_coarse(grad_x_[1].data(), c.nx, c.ny, c.cx, c.cy, gx, gy),
-                    wind_warping::sample_coarse(grad_y_[1].data(), c.nx, c.ny, c.cx, c.cy, gx, gy)};
+      const Vec2 gl{wind_warping::sample_at(gx0, c.nx, ax, ay), wind_warping::sample_at(gy0, c.nx, ax, ay)};
+      const Vec2 gs{wind_warping::sample_at(gx1, c.nx, ax, ay), wind_warping::sample_at(gy1, c.nx, ax, ay)};
       const Vec2 w = wind_warping::warp(v, gl, gs, wp);
       wx[x] = w.x;
       wy[x] = w.y;

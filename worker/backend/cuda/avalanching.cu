@@ -1,0 +1,130 @@
+// Avalanching on the GPU (stages/avalanching.h), sand and bedrock, as
+// backend/cpu/avalanching.cpp: every iteration is two gather passes over
+// double-buffered heights. Pass 1 (avalanching::donor) gives each donor its
+// fraction and the total it sends; pass 2 (avalanching::inflow) has each
+// receiver recompute what its neighbours send it.
+//
+// The CPU stops early once nothing moved and nothing can move later. Here all
+// iterations run (no read-back per iteration): once nothing moves, every
+// donor has f = 0 and out = 0, so pass 2 is the identity and the remaining
+// iterations leave the state unchanged. Each iteration sets a device flag when
+// any donor sends sand; the flags are read back once, and the count of set
+// flags is the CPU's count of iterations that moved sand.
+#include <vector>
+
+#include "backend/cuda/cuda_backend.h"
+#include "stages/avalanching.h"
+
+namespace erg::gpu {
+
+namespace {
+
+// Level-0 heights in metres: b + s for sand, b for bedrock.
+__global__ void level0_kernel(TileGeom g, bool bedrock_only, const units_t* bedrock, const units_t* sand,
+                              float* h) {
+  int x, y;
+  if (!owned_cell(g, x, y)) return;
+  const std::size_t i = g.at(x, y);
+  h[i] = units_to_m(bedrock_only ? bedrock[i] : bedrock[i] + sand[i]);
+}
+
+// Pass 1: fraction and total sent by every donor (the complete donor(), with
+// its rare correction loop: the CPU's common path plus corrections give the
+// same values cell by cell). kBedrock: unlimited supply and one repose tangent.
+template <bool kBedrock>
+__global__ void donor_kernel(TileGeom g, Offsets off, const float* h, const float* tan_l, float tan_l_const,
+                             const units_t* sand, float kc, float* frac, units_t* out, int* moved) {
+  int x, y;
+  if (!owned_cell(g, x, y)) return;
+  const long long i = static_cast<long long>(g.at(x, y));
+  float hn[8];
+  for (int k = 0; k < 8; ++k) hn[k] = h[i + off.o[k]];
+  const float t = kBedrock ? tan_l_const : tan_l[i];
+  const units_t avail = kBedrock ? kUnlimited : sand[i];
+  const avalanching::Donor d = avalanching::donor(h[i], hn, t, avail, kc);
+  frac[i] = d.f;
+  out[i] = d.out;
+  if (d.out > 0) *moved = 1;  // every writer stores the same value
+}
+
+// Pass 2: units each cell receives from its 8 neighbours, then the new layer
+// and its heights in the other height buffer.
+template <bool kBedrock>
+__global__ void inflow_kernel(TileGeom g, Offsets off, const float* h, const float* tan_l, float tan_l_const,
+                              const float* frac, const units_t* out, bool to_sand, units_t* target,
+                              units_t* sand, const units_t* bedrock, float* h_next) {
+  int x, y;
+  if (!owned_cell(g, x, y)) return;
+  const long long i = static_cast<long long>(g.at(x, y));
+  units_t in = 0;
+  for (int k = 0; k < 8; ++k) {
+    // The donor is the neighbour; it saw this cell in the opposite direction,
+    // at the same distance.
+    const long long j = i + off.o[k];
+    const float t = kBedrock ? tan_l_const : tan_l[j];
+    in += avalanching::inflow(frac[j], h[j], h[i], t, neighbour(k).dist);
+  }
+  if (!kBedrock) {
+    target[i] = target[i] - out[i] + in;
+    h_next[i] = units_to_m(bedrock[i] + target[i]);
+  } else if (to_sand) {
+    // Fallen rock breaks into sand where it lands [N24 3.8].
+    target[i] -= out[i];
+    sand[i] += in;
+    h_next[i] = units_to_m(target[i]);
+  } else {
+    target[i] = target[i] - out[i] + in;
+    h_next[i] = units_to_m(target[i]);
+  }
+}
+
+}  // namespace
+
+int CudaBackend::avalanche(bool bedrock, int iterations) {
+  if (iterations <= 0) return 0;
+  const Offsets off = neighbour_offsets(g_.pitch);
+  const Launch l = owned_cells(g_);
+  DeviceBuffer<units_t>& target = bedrock ? bedrock_ : sand_;
+
+  ERG_LAUNCH(level0_kernel, l.grid, l.block, g_, bedrock, bedrock_.get(), sand_.get(), h_a_.get());
+  fill_halo_periodic(h_a_.get(), g_, 1);
+  ERG_CUDA_CHECK(cudaMemsetAsync(moved_.get(), 0, sizeof(int) * static_cast<std::size_t>(iterations)));
+
+  const float kc_full = m_.kc;
+  for (int it = 1; it <= iterations; ++it) {
+    const float kc = avalanching::kc_for(it, iterations, kc_full, m_.kc_damped);
+    int* moved = moved_.get() + (it - 1);
+    if (bedrock)
+      ERG_LAUNCH(donor_kernel<true>, l.grid, l.block, g_, off, h_a_.get(), nullptr, m_.tan_l_bedrock, nullptr,
+                 kc, frac_.get(), out_.get(), moved);
+    else
+      ERG_LAUNCH(donor_kernel<false>, l.grid, l.block, g_, off, h_a_.get(), tan_l_.get(), 0.0f, sand_.get(),
+                 kc, frac_.get(), out_.get(), moved);
+    fill_halo_periodic(frac_.get(), g_, 1);
+
+    if (bedrock)
+      ERG_LAUNCH(inflow_kernel<true>, l.grid, l.block, g_, off, h_a_.get(), nullptr, m_.tan_l_bedrock,
+                 frac_.get(), out_.get(), m_.bedrock_to_sand, target.get(), sand_.get(), bedrock_.get(),
+                 h_b_.get());
+    else
+      ERG_LAUNCH(inflow_kernel<false>, l.grid, l.block, g_, off, h_a_.get(), tan_l_.get(), 0.0f, frac_.get(),
+                 out_.get(), false, target.get(), sand_.get(), bedrock_.get(), h_b_.get());
+    h_a_.swap(h_b_);
+    fill_halo_periodic(h_a_.get(), g_, 1);
+  }
+
+  std::vector<int> flags(static_cast<std::size_t>(iterations));
+  ERG_CUDA_CHECK(cudaMemcpy(flags.data(), moved_.get(), sizeof(int) * flags.size(), cudaMemcpyDeviceToHost));
+  int moved_iterations = 0;
+  for (const int f : flags) moved_iterations += f != 0 ? 1 : 0;
+  return moved_iterations;
+}
+
+int CudaBackend::avalanche_sand() {
+  if (m_.avalanche_iterations <= 0) return 0;
+  return avalanche(false, m_.avalanche_iterations);
+}
+
+void CudaBackend::avalanche_bedrock() { avalanche(true, m_.bedrock_iterations); }
+
+}  // namespace erg::gpu

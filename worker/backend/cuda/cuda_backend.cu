@@ -1,0 +1,399 @@
+// CUDA backend: construction, device selection, upload/download, periodic
+// halos, timeline events and exact totals. The stages are in wind.cu,
+// shadow.cu, saltation.cu, reptation.cu and avalanching.cu.
+#include <algorithm>
+#include <cstring>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "backend/cuda/cuda_backend.h"
+#include "stages/events.h"
+#include "stages/vegetation.h"
+
+namespace erg {
+namespace gpu {
+
+// ---- errors -------------------------------------------------------------------
+
+void fail(const char* what, const char* detail) {
+  throw std::runtime_error(std::string("CUDA backend: ") + what + " failed: " + detail);
+}
+
+namespace {
+const char* cufft_error_name(cufftResult r) {
+  switch (r) {
+    case CUFFT_SUCCESS: return "CUFFT_SUCCESS";
+    case CUFFT_INVALID_PLAN: return "CUFFT_INVALID_PLAN";
+    case CUFFT_ALLOC_FAILED: return "CUFFT_ALLOC_FAILED";
+    case CUFFT_INVALID_TYPE: return "CUFFT_INVALID_TYPE";
+    case CUFFT_INVALID_VALUE: return "CUFFT_INVALID_VALUE";
+    case CUFFT_INTERNAL_ERROR: return "CUFFT_INTERNAL_ERROR";
+    case CUFFT_EXEC_FAILED: return "CUFFT_EXEC_FAILED";
+    case CUFFT_SETUP_FAILED: return "CUFFT_SETUP_FAILED";
+    case CUFFT_INVALID_SIZE: return "CUFFT_INVALID_SIZE";
+    case CUFFT_UNALIGNED_DATA: return "CUFFT_UNALIGNED_DATA";
+    case CUFFT_INVALID_DEVICE: return "CUFFT_INVALID_DEVICE";
+    case CUFFT_NO_WORKSPACE: return "CUFFT_NO_WORKSPACE";
+    case CUFFT_NOT_IMPLEMENTED: return "CUFFT_NOT_IMPLEMENTED";
+    case CUFFT_NOT_SUPPORTED: return "CUFFT_NOT_SUPPORTED";
+    default: return "cuFFT error";
+  }
+}
+}  // namespace
+
+void check_cufft(cufftResult r, const char* what) {
+  if (r != CUFFT_SUCCESS) {
+    const std::string detail = std::string(cufft_error_name(r)) + " (" + std::to_string(static_cast<int>(r)) + ")";
+    fail(what, detail.c_str());
+  }
+}
+
+void check_launch(const char* kernel) {
+  const cudaError_t e = cudaGetLastError();
+  if (e != cudaSuccess) fail((std::string("launch of ") + kernel).c_str(), cudaGetErrorString(e));
+}
+
+void FftPlan::make_2d(int rows, int cols, cufftType type) {
+  if (made_) ERG_CUFFT_CHECK(cufftDestroy(h_));
+  made_ = false;
+  ERG_CUFFT_CHECK(cufftPlan2d(&h_, rows, cols, type));
+  made_ = true;
+}
+
+// ---- periodic halos -------------------------------------------------------------
+
+namespace {
+
+__device__ __forceinline__ int wrap(int v, int n) { return ((v % n) + n) % n; }
+
+// Cells of the ghost ring of width w: the w ghost rows above and below (full
+// padded width nx + 2w), then the 2w ghost columns of every owned row.
+__host__ __device__ __forceinline__ std::size_t ring_size(const TileGeom& g, int w) {
+  return 2 * static_cast<std::size_t>(w) * static_cast<std::size_t>(g.nx + 2 * w) +
+         static_cast<std::size_t>(g.ny) * static_cast<std::size_t>(2 * w);
+}
+__device__ __forceinline__ void ring_cell(const TileGeom& g, int w, std::size_t i, int& x, int& y) {
+  const std::size_t row = static_cast<std::size_t>(g.nx + 2 * w);
+  const std::size_t strip = static_cast<std::size_t>(w) * row;
+  if (i < strip) {
+    y = -w + static_cast<int>(i / row);
+    x = -w + static_cast<int>(i % row);
+  } else if (i < 2 * strip) {
+    i -= strip;
+    y = g.ny + static_cast<int>(i / row);
+    x = -w + static_cast<int>(i % row);
+  } else {
+    i -= 2 * strip;
+    const std::size_t cols = static_cast<std::size_t>(2 * w);
+    y = static_cast<int>(i / cols);
+    const int c = static_cast<int>(i % cols);
+    x = c < w ? c - w : g.nx + (c - w);
+  }
+}
+
+// Every ghost reads its owner (an owned cell, never a ghost): no ordering needed.
+template <class T>
+__global__ void fill_halo_kernel(T* f, TileGeom g, int w) {
+  const std::size_t i = flat_index();
+  if (i >= ring_size(g, w)) return;
+  int x, y;
+  ring_cell(g, w, i, x, y);
+  f[g.at(x, y)] = f[g.at(wrap(x, g.nx), wrap(y, g.ny))];
+}
+
+// Every ghost adds itself into its owner and is zeroed. Owners are owned
+// cells, never ghosts; several ghosts may share an owner when the halo is wider
+// than the tile: integer atomics, exact in any order.
+__global__ void fold_halo_kernel(units_t* f, TileGeom g, int w) {
+  const std::size_t i = flat_index();
+  if (i >= ring_size(g, w)) return;
+  int x, y;
+  ring_cell(g, w, i, x, y);
+  units_t& v = f[g.at(x, y)];
+  if (v != 0) {
+    atomicAdd(reinterpret_cast<unsigned long long*>(f + g.at(wrap(x, g.nx), wrap(y, g.ny))),
+              static_cast<unsigned long long>(v));
+    v = 0;
+  }
+}
+
+}  // namespace
+
+template <class T>
+void fill_halo_periodic(T* f, const TileGeom& g, int width) {
+  const int w = width < g.halo ? width : g.halo;
+  if (w <= 0) return;
+  const Launch l = flat(ring_size(g, w));
+  ERG_LAUNCH(fill_halo_kernel<T>, l.grid, l.block, f, g, w);
+}
+
+void fold_halo_periodic(units_t* f, const TileGeom& g, int width) {
+  const int w = width < g.halo ? width : g.halo;
+  if (w <= 0) return;
+  const Launch l = flat(ring_size(g, w));
+  ERG_LAUNCH(fold_halo_kernel, l.grid, l.block, f, g, w);
+}
+
+template void fill_halo_periodic(units_t*, const TileGeom&, int);
+template void fill_halo_periodic(float*, const TileGeom&, int);
+
+// ---- kernels: events, repose, totals, downloads ------------------------------------
+
+namespace {
+
+__global__ void repose_kernel(TileGeom g, const float* vegetation, float* tan_l, float tan_bare,
+                              float tan_vegetated) {
+  int x, y;
+  if (!owned_cell(g, x, y)) return;
+  const std::size_t i = g.at(x, y);
+  tan_l[i] = vegetation::repose_tan(vegetation[i], tan_bare, tan_vegetated);
+}
+
+// One block per row; the row's exact change goes to row_change[y].
+__global__ void sand_brush_kernel(TileGeom g, events::Brush b, units_t* sand, total_t* row_change) {
+  __shared__ total_t red[kRowThreads];
+  const int y = static_cast<int>(blockIdx.x);
+  units_t* s = sand + g.at(0, y);
+  total_t change = 0;
+  for (int x = static_cast<int>(threadIdx.x); x < g.nx; x += kRowThreads) {
+    units_t d = events::brush_units(b, centre_x(g, x), centre_y(g, y));
+    if (d < -s[x]) d = -s[x];  // never below bare ground
+    s[x] += d;
+    change += d;
+  }
+  change = block_sum(change, red);
+  if (threadIdx.x == 0) row_change[y] = change;
+}
+
+__global__ void bedrock_brush_kernel(TileGeom g, events::Brush b, units_t* bedrock, total_t* row_change) {
+  __shared__ total_t red[kRowThreads];
+  const int y = static_cast<int>(blockIdx.x);
+  units_t* r = bedrock + g.at(0, y);
+  total_t change = 0;
+  for (int x = static_cast<int>(threadIdx.x); x < g.nx; x += kRowThreads) {
+    const units_t d = events::brush_units(b, centre_x(g, x), centre_y(g, y));
+    r[x] += d;
+    change += d;
+  }
+  change = block_sum(change, red);
+  if (threadIdx.x == 0) row_change[y] = change;
+}
+
+__global__ void vegetation_kernel(TileGeom g, events::Region r, float* vegetation) {
+  int x, y;
+  if (!owned_cell(g, x, y)) return;
+  if (events::in_region(r, centre_x(g, x), centre_y(g, y))) vegetation[g.at(x, y)] = r.value;
+}
+
+// One block per row: rows[y], rows[ny + y], rows[2 ny + y] = sand, airborne,
+// bedrock of row y.
+__global__ void totals_kernel(TileGeom g, const units_t* sand, const units_t* airborne,
+                              const units_t* bedrock, total_t* rows) {
+  __shared__ total_t rs[kRowThreads], ra[kRowThreads], rb[kRowThreads];
+  const int y = static_cast<int>(blockIdx.x);
+  const std::size_t row = g.at(0, y);
+  total_t s = 0, a = 0, b = 0;
+  for (int x = static_cast<int>(threadIdx.x); x < g.nx; x += kRowThreads) {
+    s += sand[row + x];
+    a += airborne[row + x];
+    b += bedrock[row + x];
+  }
+  s = block_sum(s, rs);
+  a = block_sum(a, ra);
+  b = block_sum(b, rb);
+  if (threadIdx.x == 0) {
+    rows[y] = s;
+    rows[g.ny + y] = a;
+    rows[2 * g.ny + y] = b;
+  }
+}
+
+// Owned wind as row-major (x, y) pairs.
+__global__ void pack_wind_kernel(TileGeom g, const float* wx, const float* wy, float* out) {
+  int x, y;
+  if (!owned_cell(g, x, y)) return;
+  const std::size_t i = g.at(x, y);
+  const std::size_t o = (static_cast<std::size_t>(y) * g.nx + x) * 2;
+  out[o] = wx[i];
+  out[o + 1] = wy[i];
+}
+
+}  // namespace
+
+// ---- the backend ------------------------------------------------------------------
+
+CudaBackend::CudaBackend(const Model& model) : m_(model), g_(model.tile) {
+  // One device per process for now (later: local rank % device count).
+  ERG_CUDA_CHECK(cudaSetDevice(0));
+
+  const std::size_t n = g_.size();
+  bedrock_.reset(n);
+  sand_.reset(n);
+  airborne_.reset(n);
+  vegetation_.reset(n);
+  resistance_.reset(n);
+  height_m_.reset(n);
+  wind_x_.reset(n);
+  wind_y_.reset(n);
+  shadow_.reset(n);
+  landed_.reset(n);
+  reptation_.reset(n);
+  tan_l_.reset(n);
+  sand_next_.reset(n);
+  h_a_.reset(n);
+  h_b_.reset(n);
+  frac_.reset(n);
+  out_.reset(n);
+  moved_.reset(static_cast<std::size_t>(std::max({m_.avalanche_iterations, m_.bedrock_iterations, 1})));
+
+  // Coarse grid of the wind warping: buffers, plans (made once, here) and the
+  // Gaussian transfer per spectral coefficient, evaluated on the host by the
+  // same function and expressions as cpu::CoarseSmoother.
+  const CoarseGrid& c = m_.coarse;
+  const int hx = c.nx / 2 + 1;
+  const std::size_t cn = static_cast<std::size_t>(c.nx) * c.ny;
+  const std::size_t nc = static_cast<std::size_t>(hx) * c.ny;
+  coarse_h_.reset(cn);
+  spectrum_.reset(nc);
+  work_.reset(nc);
+  for (int s = 0; s < 2; ++s) {
+    grad_x_[s].reset(cn);
+    grad_y_[s].reset(cn);
+    gauss_[s].reset(nc);
+    std::vector<double> gauss(nc);
+    const double norm = 1.0 / static_cast<double>(cn);
+    for (int j = 0; j < c.ny; ++j) {
+      const int mj = j <= c.ny / 2 ? j : j - c.ny;
+      const double ky = mj / c.ly_m;
+      for (int i = 0; i < hx; ++i) {
+        const double kx = i / c.lx_m;
+        gauss[static_cast<std::size_t>(j) * hx + i] =
+            wind_warping::gaussian_transfer(kx, ky, c.sigma_m[s]) * norm;
+      }
+    }
+    ERG_CUDA_CHECK(cudaMemcpy(gauss_[s].get(), gauss.data(), nc * sizeof(double), cudaMemcpyHostToDevice));
+  }
+  forward_.make_2d(c.ny, c.nx, CUFFT_D2Z);
+  inverse_.make_2d(c.ny, c.nx, CUFFT_Z2D);
+
+  row_sums_.reset(3 * static_cast<std::size_t>(g_.ny));
+  host_rows_.assign(3 * static_cast<std::size_t>(g_.ny), 0);
+  wind_xy_.reset(2 * static_cast<std::size_t>(g_.nx) * g_.ny);
+}
+
+namespace {
+template <class T>
+void copy_in(DeviceBuffer<T>& d, const Field<T>& h, const char* name) {
+  if (h.size() != d.size())
+    throw std::runtime_error(std::string("CUDA backend: upload: field ") + name +
+                             " does not have the tile's padded size");
+  ERG_CUDA_CHECK(cudaMemcpy(d.get(), h.data(), d.bytes(), cudaMemcpyHostToDevice));
+}
+template <class T>
+void copy_out(const DeviceBuffer<T>& d, Field<T>& h, const TileGeom& g) {
+  h.reset(g);
+  ERG_CUDA_CHECK(cudaMemcpy(h.data(), d.get(), d.bytes(), cudaMemcpyDeviceToHost));
+}
+}  // namespace
+
+void CudaBackend::upload(const TileState& s) {
+  copy_in(bedrock_, s.bedrock, "bedrock");
+  copy_in(sand_, s.sand, "sand");
+  copy_in(airborne_, s.airborne, "airborne");
+  copy_in(vegetation_, s.vegetation, "vegetation");
+  copy_in(resistance_, s.resistance, "resistance");
+  update_repose();
+}
+
+void CudaBackend::download(TileState& s) {
+  s.geom = g_;
+  copy_out(bedrock_, s.bedrock, g_);
+  copy_out(sand_, s.sand, g_);
+  copy_out(airborne_, s.airborne, g_);
+  copy_out(vegetation_, s.vegetation, g_);
+  copy_out(resistance_, s.resistance, g_);
+}
+
+void CudaBackend::download_wind(std::vector<float>& wind_xy) {
+  const Launch l = owned_cells(g_);
+  ERG_LAUNCH(pack_wind_kernel, l.grid, l.block, g_, wind_x_.get(), wind_y_.get(), wind_xy_.get());
+  wind_xy.resize(wind_xy_.size());
+  ERG_CUDA_CHECK(cudaMemcpy(wind_xy.data(), wind_xy_.get(), wind_xy_.bytes(), cudaMemcpyDeviceToHost));
+}
+
+void CudaBackend::download_shadow(std::vector<float>& shadow) {
+  shadow.resize(static_cast<std::size_t>(g_.nx) * g_.ny);
+  ERG_CUDA_CHECK(cudaMemcpy2D(shadow.data(), sizeof(float) * g_.nx, shadow_.get() + g_.at(0, 0),
+                              sizeof(float) * g_.pitch, sizeof(float) * g_.nx, g_.ny,
+                              cudaMemcpyDeviceToHost));
+}
+
+void CudaBackend::update_repose() {
+  const Launch l = owned_cells(g_);
+  ERG_LAUNCH(repose_kernel, l.grid, l.block, g_, vegetation_.get(), tan_l_.get(), m_.tan_l_sand,
+             m_.tan_l_vegetated);
+  fill_halo_periodic(tan_l_.get(), g_, Model::kHaloStencil);
+}
+
+void CudaBackend::fetch_rows(int count) {
+  ERG_CUDA_CHECK(cudaMemcpy(host_rows_.data(), row_sums_.get(), sizeof(total_t) * count,
+                            cudaMemcpyDeviceToHost));
+}
+
+total_t CudaBackend::sum_rows(int first, int count) const {
+  total_t t = 0;
+  for (int y = 0; y < count; ++y) t += host_rows_[static_cast<std::size_t>(first) + y];
+  return t;
+}
+
+total_t CudaBackend::apply_sand_brush(const events::Brush& b) {
+  ERG_LAUNCH(sand_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, sand_.get(), row_sums_.get());
+  fetch_rows(g_.ny);
+  return sum_rows(0, g_.ny);
+}
+
+total_t CudaBackend::apply_bedrock_brush(const events::Brush& b) {
+  ERG_LAUNCH(bedrock_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, bedrock_.get(), row_sums_.get());
+  fetch_rows(g_.ny);
+  return sum_rows(0, g_.ny);
+}
+
+void CudaBackend::set_vegetation(const events::Region& r) {
+  const Launch l = owned_cells(g_);
+  ERG_LAUNCH(vegetation_kernel, l.grid, l.block, g_, r, vegetation_.get());
+  update_repose();
+}
+
+Totals CudaBackend::totals() {
+  ERG_LAUNCH(totals_kernel, dim3(g_.ny), dim3(kRowThreads), g_, sand_.get(), airborne_.get(),
+             bedrock_.get(), row_sums_.get());
+  fetch_rows(3 * g_.ny);
+  Totals t;
+  t.sand = sum_rows(0, g_.ny);
+  t.airborne = sum_rows(g_.ny, g_.ny);
+  t.bedrock = sum_rows(2 * g_.ny, g_.ny);
+  return t;
+}
+
+void CudaBackend::synchronize() { ERG_CUDA_CHECK(cudaDeviceSynchronize()); }
+
+}  // namespace gpu
+
+// ---- entry points for backend/backend.cpp ----------------------------------------
+
+std::unique_ptr<Backend> make_cuda_backend(const Model& model) {
+  return std::make_unique<gpu::CudaBackend>(model);
+}
+
+bool cuda_runtime_has_device() {
+  int count = 0;
+  const cudaError_t e = cudaGetDeviceCount(&count);
+  if (e != cudaSuccess) {
+    (void)cudaGetLastError();  // leave no error behind for later calls
+    return false;
+  }
+  return count > 0;
+}
+
+}  // namespace erg

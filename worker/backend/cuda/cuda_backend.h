@@ -1,0 +1,238 @@
+// The CUDA backend: the same stages, in the same order, over the same padded
+// fields as the CPU backend (backend/cpu), one thread per cell. Every formula
+// is a call into stages/ (shared with the CPU); the code here only allocates
+// device memory, fills and folds halos, launches kernels and runs the cuFFT
+// plans of the wind-warping smoothing. Scatters use 64-bit integer atomics
+// (exact and order-independent); reductions are integer sums, so results do
+// not depend on the launch configuration (DESIGN.md section 3).
+//
+// Included only by the .cu files of this folder (it has device code).
+#pragma once
+
+#include <cuda_runtime.h>
+#include <cufft.h>
+
+#include <cstddef>
+#include <limits>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "backend/backend.h"
+#include "core/grid.h"
+#include "core/units.h"
+
+namespace erg::gpu {
+
+// ---- error checking ---------------------------------------------------------
+// Every CUDA call is checked; a failure throws std::runtime_error naming the
+// call and the runtime's message.
+[[noreturn]] void fail(const char* what, const char* detail);
+inline void check(cudaError_t e, const char* what) {
+  if (e != cudaSuccess) fail(what, cudaGetErrorString(e));
+}
+void check_cufft(cufftResult r, const char* what);
+// After a kernel launch: reports launch errors (and earlier asynchronous ones).
+void check_launch(const char* kernel);
+
+#define ERG_CUDA_CHECK(call) ::erg::gpu::check((call), #call)
+#define ERG_CUFFT_CHECK(call) ::erg::gpu::check_cufft((call), #call)
+// kernel<<<grid, block>>>(args...) followed by a launch check naming it.
+#define ERG_LAUNCH(kernel, grid, block, ...)   \
+  do {                                         \
+    kernel<<<(grid), (block)>>>(__VA_ARGS__);  \
+    ::erg::gpu::check_launch(#kernel);         \
+  } while (0)
+
+// ---- device memory ----------------------------------------------------------
+// An owned, zero-initialised device array.
+template <class T>
+class DeviceBuffer {
+ public:
+  DeviceBuffer() = default;
+  ~DeviceBuffer() {
+    if (p_) cudaFree(p_);  // no throw from a destructor
+  }
+  DeviceBuffer(const DeviceBuffer&) = delete;
+  DeviceBuffer& operator=(const DeviceBuffer&) = delete;
+  DeviceBuffer(DeviceBuffer&& o) noexcept { swap(o); }
+  DeviceBuffer& operator=(DeviceBuffer&& o) noexcept {
+    swap(o);
+    return *this;
+  }
+
+  void reset(std::size_t n) {
+    if (p_) ERG_CUDA_CHECK(cudaFree(p_));
+    p_ = nullptr;
+    n_ = 0;
+    if (n == 0) return;
+    ERG_CUDA_CHECK(cudaMalloc(reinterpret_cast<void**>(&p_), n * sizeof(T)));
+    n_ = n;
+    ERG_CUDA_CHECK(cudaMemset(p_, 0, n * sizeof(T)));
+  }
+  void swap(DeviceBuffer& o) noexcept {
+    std::swap(p_, o.p_);
+    std::swap(n_, o.n_);
+  }
+  T* get() { return p_; }
+  const T* get() const { return p_; }
+  std::size_t size() const { return n_; }
+  std::size_t bytes() const { return n_ * sizeof(T); }
+
+ private:
+  T* p_ = nullptr;
+  std::size_t n_ = 0;
+};
+
+// A cuFFT plan, destroyed with its owner.
+class FftPlan {
+ public:
+  FftPlan() = default;
+  ~FftPlan() {
+    if (made_) cufftDestroy(h_);
+  }
+  FftPlan(const FftPlan&) = delete;
+  FftPlan& operator=(const FftPlan&) = delete;
+  // rows x cols, row-major (cufftPlan2d's nx is the slow dimension).
+  void make_2d(int rows, int cols, cufftType type);
+  cufftHandle get() const { return h_; }
+
+ private:
+  cufftHandle h_ = 0;
+  bool made_ = false;
+};
+
+// ---- launch geometry --------------------------------------------------------
+inline constexpr int kBlockX = 32, kBlockY = 8;  // 2-D blocks over owned cells
+inline constexpr int kRowThreads = 256;          // one block per row (reductions)
+inline constexpr int kThreads1D = 256;
+
+struct Launch {
+  dim3 grid, block;
+};
+// One thread per owned cell.
+inline Launch owned_cells(const TileGeom& g) {
+  return {dim3(static_cast<unsigned>((g.nx + kBlockX - 1) / kBlockX),
+               static_cast<unsigned>((g.ny + kBlockY - 1) / kBlockY)),
+          dim3(kBlockX, kBlockY)};
+}
+// One thread per element of a flat array of n.
+inline Launch flat(std::size_t n) {
+  return {dim3(static_cast<unsigned>((n + kThreads1D - 1) / kThreads1D)), dim3(kThreads1D)};
+}
+// The owned cell of this thread; false for the threads past the tile edge.
+__device__ __forceinline__ bool owned_cell(const TileGeom& g, int& x, int& y) {
+  x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  y = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y);
+  return x < g.nx && y < g.ny;
+}
+__device__ __forceinline__ std::size_t flat_index() {
+  return static_cast<std::size_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+}
+
+// Sum of one value per thread of a kRowThreads block (integers: exact in any
+// order). The result is valid in thread 0.
+__device__ __forceinline__ total_t block_sum(total_t v, total_t* shared) {
+  shared[threadIdx.x] = v;
+  __syncthreads();
+  for (int s = kRowThreads / 2; s > 0; s >>= 1) {
+    if (static_cast<int>(threadIdx.x) < s) shared[threadIdx.x] += shared[threadIdx.x + s];
+    __syncthreads();
+  }
+  return shared[0];
+}
+
+// Neighbour offsets in storage, in the fixed neighbour order (core/grid.h).
+struct Offsets {
+  long long o[8];
+};
+inline Offsets neighbour_offsets(int pitch) {
+  Offsets off{};
+  for (int k = 0; k < 8; ++k)
+    off.o[k] = static_cast<long long>(neighbour(k).dy) * pitch + neighbour(k).dx;
+  return off;
+}
+
+// Cell centre of local cell (x, y) in global metres (as in the CPU backend).
+ERG_HD double centre_x(const TileGeom& g, int x) { return (g.x0 + x + 0.5) * g.cell_m; }
+ERG_HD double centre_y(const TileGeom& g, int y) { return (g.y0 + y + 0.5) * g.cell_m; }
+
+// Bedrock avalanching has no supply limit (as in the CPU backend).
+inline constexpr units_t kUnlimited = std::numeric_limits<units_t>::max() / 4;
+
+// ---- periodic halos (cuda_backend.cu) ---------------------------------------
+// Same results as cpu::fill_halo_periodic / cpu::fold_halo_periodic: every
+// ghost within min(width, halo) takes its owner's value; the fold adds every
+// ghost into its owner (integer atomics) and zeroes the ghost.
+template <class T>
+void fill_halo_periodic(T* f, const TileGeom& g, int width);
+void fold_halo_periodic(units_t* f, const TileGeom& g, int width);
+
+// ---- the backend --------------------------------------------------------------
+class CudaBackend final : public Backend {
+ public:
+  explicit CudaBackend(const Model& model);
+  std::string name() const override { return "cuda"; }
+  void upload(const TileState& s) override;
+  void download(TileState& s) override;
+  void download_wind(std::vector<float>& wind_xy) override;
+  void download_shadow(std::vector<float>& shadow) override;
+
+  void wind(Vec2 a) override;                 // wind.cu
+  void shadow() override;                     // shadow.cu
+  void saltation(std::int64_t step) override; // saltation.cu
+  void reptation() override;                  // reptation.cu
+  int avalanche_sand() override;              // avalanching.cu
+  void avalanche_bedrock() override;          // avalanching.cu
+
+  total_t apply_sand_brush(const events::Brush& b) override;
+  total_t apply_bedrock_brush(const events::Brush& b) override;
+  void set_vegetation(const events::Region& r) override;
+  Totals totals() override;
+  void synchronize() override;
+
+ private:
+  void update_repose();  // tan_l from vegetation
+  int avalanche(bool bedrock, int iterations);  // avalanching.cu
+  void coarse_gradients();                      // wind.cu: coarse_h_ -> grad_x_, grad_y_
+  // Per-row partial sums: copy the first `count` of row_sums_ to the host,
+  // then add host_rows_[first, first + count) in a fixed order.
+  void fetch_rows(int count);
+  total_t sum_rows(int first, int count) const;
+
+  Model m_;
+  TileGeom g_;
+  // exact state (padded, TileGeom::at layout)
+  DeviceBuffer<units_t> bedrock_, sand_, airborne_;
+  DeviceBuffer<float> vegetation_, resistance_;
+  // derived each step
+  DeviceBuffer<float> height_m_;  // b + s in metres, halo filled for the shadow march
+  DeviceBuffer<float> wind_x_, wind_y_, shadow_;
+  DeviceBuffer<units_t> landed_;   // saltation scatter target (halo for the hop reach)
+  DeviceBuffer<float> reptation_;  // s_r
+  DeviceBuffer<float> tan_l_;      // tan(repose(v)) * l for sand
+  // reptation / avalanching work buffers
+  DeviceBuffer<units_t> sand_next_;
+  DeviceBuffer<float> h_a_, h_b_, frac_;
+  DeviceBuffer<units_t> out_;
+  DeviceBuffer<int> moved_;  // one flag per avalanching iteration
+  // wind warping on the coarse grid
+  DeviceBuffer<double> coarse_h_;                 // [ny][nx] real input/output of the FFTs
+  DeviceBuffer<cufftDoubleComplex> spectrum_;     // [ny][nx/2+1]
+  DeviceBuffer<cufftDoubleComplex> work_;         // spectrum times transfer, Z2D input
+  DeviceBuffer<double> gauss_[2];                 // Gaussian transfer * 1/(nx ny), per scale
+  DeviceBuffer<float> grad_x_[2], grad_y_[2];     // [ny][nx], scale 0 large, 1 small
+  FftPlan forward_, inverse_;
+  // reductions and downloads
+  DeviceBuffer<total_t> row_sums_;  // 3 ny
+  std::vector<total_t> host_rows_;
+  DeviceBuffer<float> wind_xy_;     // owned wind, interleaved, for download_wind
+};
+
+}  // namespace erg::gpu
+
+namespace erg {
+// Entry points for backend/backend.cpp (cuda_backend.cu).
+std::unique_ptr<Backend> make_cuda_backend(const Model& model);
+bool cuda_runtime_has_device();
+}  // namespace erg

@@ -1,0 +1,105 @@
+// Saltation on the GPU (stages/saltation.h), as backend/cpu/saltation.cpp:
+// (1) lift into the airborne buffer, (2) scatter every airborne amount one hop
+// downwind into `landed` (64-bit integer atomics: exact, any order), fold the
+// ghosts back onto their owners (the torus), (3) deposit, bounce, abrade and
+// record the reptation strength.
+#include "backend/cuda/cuda_backend.h"
+#include "core/philox.h"
+#include "stages/saltation.h"
+
+namespace erg::gpu {
+
+namespace {
+
+__device__ __forceinline__ void add_units(units_t* cell, units_t q) {
+  // Two's-complement addition: the same bits as a signed add, in any order.
+  atomicAdd(reinterpret_cast<unsigned long long*>(cell), static_cast<unsigned long long>(q));
+}
+
+// (1) Lift (last step's bounces are already in the airborne buffer).
+__global__ void lift_kernel(TileGeom g, saltation::Params p, std::uint64_t seed, std::uint64_t step,
+                            units_t* sand, units_t* airborne, const float* shadow, const float* vegetation,
+                            const float* wind_x, const float* wind_y) {
+  int x, y;
+  if (!owned_cell(g, x, y)) return;
+  const std::size_t i = g.at(x, y);
+  const float speed = length(Vec2{wind_x[i], wind_y[i]});
+  units_t q;
+  if (p.stochastic) {
+    const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLift).v[0]);
+    q = saltation::lift_stochastic(sand[i], shadow[i], vegetation[i], speed, u, p);
+  } else {
+    q = saltation::lift_expected(sand[i], shadow[i], vegetation[i], speed, p);
+  }
+  sand[i] -= q;
+  airborne[i] += q;
+}
+
+// (2) One hop downwind into `landed` (owned + ghosts).
+__global__ void scatter_kernel(TileGeom g, saltation::Params p, std::uint64_t seed, std::uint64_t step,
+                               units_t* airborne, const float* wind_x, const float* wind_y,
+                               units_t* landed) {
+  int x, y;
+  if (!owned_cell(g, x, y)) return;
+  const std::size_t i = g.at(x, y);
+  const units_t a = airborne[i];
+  if (a == 0) return;
+  airborne[i] = 0;
+  const saltation::Landing L = saltation::landing(x, y, {wind_x[i], wind_y[i]}, p);
+  if (p.stochastic) {
+    const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLanding).v[0]);
+    const int k = saltation::pick_corner(L.fx, L.fy, u);
+    add_units(landed + g.at(L.x0 + (k & 1), L.y0 + (k >> 1)), a);
+  } else {
+    units_t q[4];
+    saltation::split_bilinear(a, L.fx, L.fy, q);
+    add_units(landed + g.at(L.x0, L.y0), q[0]);
+    add_units(landed + g.at(L.x0 + 1, L.y0), q[1]);
+    add_units(landed + g.at(L.x0, L.y0 + 1), q[2]);
+    add_units(landed + g.at(L.x0 + 1, L.y0 + 1), q[3]);
+  }
+}
+
+// (3) Deposit, bounce, abrade; record the reptation strength.
+__global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t seed, std::uint64_t step,
+                              const units_t* landed, units_t* sand, units_t* bedrock, units_t* airborne,
+                              const float* shadow, const float* vegetation, const float* resistance,
+                              const float* wind_x, const float* wind_y, float* reptation) {
+  int x, y;
+  if (!owned_cell(g, x, y)) return;
+  const std::size_t i = g.at(x, y);
+  const units_t in = landed[i];
+  float u = 0.0f;
+  if (p.stochastic && in > 0)
+    u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kDeposit).v[0]);
+  const saltation::Impact im = saltation::impact(in, sand[i], shadow[i], vegetation[i], resistance[i],
+                                                 length(Vec2{wind_x[i], wind_y[i]}), u, p);
+  sand[i] += im.deposited + im.abraded;
+  bedrock[i] -= im.abraded;
+  airborne[i] = im.bounced;
+  reptation[i] = im.reptation_m;
+}
+
+}  // namespace
+
+void CudaBackend::saltation(std::int64_t step) {
+  const saltation::Params p = m_.saltation;
+  const std::uint64_t seed = m_.seed;
+  const auto ustep = static_cast<std::uint64_t>(step);
+  const Launch l = owned_cells(g_);
+
+  ERG_LAUNCH(lift_kernel, l.grid, l.block, g_, p, seed, ustep, sand_.get(), airborne_.get(), shadow_.get(),
+             vegetation_.get(), wind_x_.get(), wind_y_.get());
+
+  ERG_CUDA_CHECK(cudaMemsetAsync(landed_.get(), 0, landed_.bytes()));
+  ERG_LAUNCH(scatter_kernel, l.grid, l.block, g_, p, seed, ustep, airborne_.get(), wind_x_.get(),
+             wind_y_.get(), landed_.get());
+  // Sand that left the tile re-enters on the opposite side (the torus).
+  fold_halo_periodic(landed_.get(), g_, m_.halo_saltation());
+
+  ERG_LAUNCH(impact_kernel, l.grid, l.block, g_, p, seed, ustep, landed_.get(), sand_.get(), bedrock_.get(),
+             airborne_.get(), shadow_.get(), vegetation_.get(), resistance_.get(), wind_x_.get(),
+             wind_y_.get(), reptation_.get());
+}
+
+}  // namespace erg::gpu
