@@ -122,3 +122,35 @@ TEST(Exactness, EventsAreAccountedToTheUnit) {
 
 }  // namespace
 }  // namespace erg::test
+
+namespace erg::test {
+namespace {
+
+// The CPU backend visits only the cells where an avalanching iteration can
+// change something; visiting every cell must give the same bits.
+TEST(Exactness, SparseAvalanchingEqualsVisitingEveryCell) {
+  const std::string column = R"({
+    "domain": {"nx": 96, "ny": 80, "cell_size_m": 1.0},
+    "layers": {"bedrock": {"fbm": {"amplitude": 4, "wavelength_m": 32, "octaves": 3}},
+               "sand": {"piles": [{"x_m": 40, "y_m": 40, "height": 60, "radius_m": 6, "shape": "CYLINDER"}],
+                        "uniform": {"min": 0, "max": 1.5}},
+               "vegetation": {"uniform": {"min": 0, "max": 0.6}}},
+    "wind": {"constant": {"speed_mps": 6, "direction_deg": 30}},
+    "model": {"avalanche_iterations": 40, "bedrock_avalanche_iterations": 3, "abrasion_k": 0.05,
+              "bedrock_to_sand": true},
+    "run": {"steps": 60}})";
+  for (const std::string& json : {column, exact_job("EXPECTED", true), exact_job("STOCHASTIC", false)}) {
+    RunOptions sparse = cpu_threads(2), everywhere = cpu_threads(2);
+    everywhere.avalanche_everywhere = true;
+    Simulation a(spec_from(json), ".", sparse), b(spec_from(json), ".", everywhere);
+    for (int s = 0; s < 60; ++s) {
+      a.step();
+      b.step();
+    }
+    expect_bitwise_equal(a.state(), b.state(), "sparse vs everywhere");
+    EXPECT_GT(a.times().avalanche_iterations, 0) << "nothing avalanched: the test proves nothing";
+  }
+}
+
+}  // namespace
+}  // namespace erg::test

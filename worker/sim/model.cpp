@@ -48,6 +48,8 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0) {
   md.shadow.cell_m = static_cast<float>(l);
   md.shadow.tan_min = static_cast<float>(std::tan(m.shadow_angle_min_deg() * kDeg));
   md.shadow.tan_max = static_cast<float>(std::tan(m.shadow_angle_max_deg() * kDeg));
+  md.shadow.steps = std::min(md.shadow.steps, wind_shadow::kMaxShadowSteps);  // validated: <= 128
+  wind_shadow::finish(md.shadow);
 
   auto& s = md.saltation;
   s.slab_units = static_cast<float>(m.slab_m() * kUnitsPerM);

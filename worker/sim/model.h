@@ -39,6 +39,9 @@ struct Model {
   int bedrock_iterations = 0;
   bool bedrock_to_sand = false;
   double time_step_days = 0;
+  // Execution, not physics: visit every cell in every avalanching iteration
+  // instead of only where something can change (tests compare the two).
+  bool avalanche_everywhere = false;
 
   // Ghost cells each stage reads (DESIGN.md section 4).
   int halo_shadow() const { return shadow.steps + 2; }

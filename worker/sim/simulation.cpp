@@ -79,6 +79,7 @@ Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt) {
 }
 
 void Simulation::init_backend(const RunOptions& opt, const TileState& initial) {
+  model_.avalanche_everywhere = opt.avalanche_everywhere;
   backend_ = make_backend(opt.backend, model_, opt.threads);
   backend_->upload(initial);
 }

@@ -18,6 +18,7 @@ namespace erg {
 struct RunOptions {
   BackendKind backend = BackendKind::kAuto;
   int threads = 0;  // 0: all hardware threads (OMP_NUM_THREADS)
+  bool avalanche_everywhere = false;  // see Model (tests)
 };
 
 // Pipeline stages, for timing.

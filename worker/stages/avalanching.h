@@ -37,47 +37,66 @@ ERG_HD float kc_for(int iteration, int iterations, float kc, float kc_damped) {
   return (iteration % 10 == 0 || iteration > iterations - 5) ? kc_damped : kc;
 }
 
+
+// The excesses of eq. 9 over the 8 neighbours (kNeighbours order: straight,
+// diagonal, alternating), written out so that compilers vectorise the loop
+// over cells around them.
+struct Excess {
+  float b[8];
+};
+ERG_HD Excess excesses(float h, const float hn[8], float tan_l) {
+  return {{excess(h, hn[0], tan_l, 1.0f), excess(h, hn[1], tan_l, kSqrt2), excess(h, hn[2], tan_l, 1.0f),
+           excess(h, hn[3], tan_l, kSqrt2), excess(h, hn[4], tan_l, 1.0f), excess(h, hn[5], tan_l, kSqrt2),
+           excess(h, hn[6], tan_l, 1.0f), excess(h, hn[7], tan_l, kSqrt2)}};
+}
+
+// The total a donor with fraction f sends: the sum of the shares its
+// receivers compute with inflow().
+ERG_HD units_t outflow(float f, const Excess& e) {
+  return transfer(f, e.b[0]) + transfer(f, e.b[1]) + transfer(f, e.b[2]) + transfer(f, e.b[3]) +
+         transfer(f, e.b[4]) + transfer(f, e.b[5]) + transfer(f, e.b[6]) + transfer(f, e.b[7]);
+}
+
+// Pass 1 at one cell, common path: the fraction f = k_c B_A / B_sum of eq. 11
+// (0 when nothing exceeds repose or nothing is available). `check` is set when
+// the shares might add up to more than is available; donor() then decides.
+struct Fraction {
+  float f;
+  bool check;
+};
+ERG_HD Fraction fraction(float h, const float hn[8], float tan_l, units_t available, float kc) {
+  const Excess e = excesses(h, hn, tan_l);
+  const float bsum = ((((((e.b[0] + e.b[1]) + e.b[2]) + e.b[3]) + e.b[4]) + e.b[5]) + e.b[6]) + e.b[7];
+  const float bmax = max_of(max_of(max_of(e.b[0], e.b[1]), max_of(e.b[2], e.b[3])),
+                            max_of(max_of(e.b[4], e.b[5]), max_of(e.b[6], e.b[7])));
+  const bool moves = bsum > 0.0f && available > 0;
+  const float safe_sum = moves ? bsum : 1.0f;
+  const float ba = min_of(bmax / (1.0f + bmax / safe_sum), units_to_m(available));  // eq. 11
+  const float f = moves ? kc * ba / safe_sum : 0.0f;
+  // The shares sum to at most k_c B_A (1 + 2^-19) in units (float rounding of
+  // the 8 products and of the sums); with a 1e-4 margin they surely fit.
+  const bool fits = kc * ba * kUnitsPerMf * 1.0001f < static_cast<float>(available);
+  return {f, moves && !fits};
+}
+
 struct Donor {
   float f;      // fraction of each excess that is sent (0: sends nothing)
   units_t out;  // total units sent
   bool stuck;   // has excess, but every share rounds to 0 units
 };
 
-// Pass 1 at one cell, common path: f and out, before checking out against
-// what is available. hn[k] are the neighbours' heights in kNeighbours order;
-// `available` caps the amount (the cell's sand; bedrock is unlimited).
-ERG_HD Donor donor_shares(float h, const float hn[8], float tan_l, units_t available, float kc) {
-  // Written out for the 8 neighbours (kNeighbours order: straight, diagonal,
-  // alternating) so that compilers vectorise the loop over cells around it.
-  const float b0 = excess(h, hn[0], tan_l, 1.0f), b1 = excess(h, hn[1], tan_l, kSqrt2);
-  const float b2 = excess(h, hn[2], tan_l, 1.0f), b3 = excess(h, hn[3], tan_l, kSqrt2);
-  const float b4 = excess(h, hn[4], tan_l, 1.0f), b5 = excess(h, hn[5], tan_l, kSqrt2);
-  const float b6 = excess(h, hn[6], tan_l, 1.0f), b7 = excess(h, hn[7], tan_l, kSqrt2);
-  const float bsum = ((((((b0 + b1) + b2) + b3) + b4) + b5) + b6) + b7;
-  const float bmax = max_of(max_of(max_of(b0, b1), max_of(b2, b3)), max_of(max_of(b4, b5), max_of(b6, b7)));
-  const bool moves = bsum > 0.0f && available > 0;
-  const float safe_sum = moves ? bsum : 1.0f;
-  const float ba = min_of(bmax / (1.0f + bmax / safe_sum), units_to_m(available));  // eq. 11
-  const float f = moves ? kc * ba / safe_sum : 0.0f;
-  const units_t out = transfer(f, b0) + transfer(f, b1) + transfer(f, b2) + transfer(f, b3) +
-                      transfer(f, b4) + transfer(f, b5) + transfer(f, b6) + transfer(f, b7);
-  return {f, out, false};
-}
-
 // Pass 1 at one cell, complete: float rounding can push the sum of shares a
 // few units past what is available, then f shrinks until it fits (rare, and
 // the same everywhere); a donor whose shares all round to 0 sends nothing and
-// is marked stuck (a larger k_c may move it later).
+// is marked stuck (a larger k_c may move it later). Where fraction() needs no
+// check, its f sends exactly the same shares as donor()'s.
 ERG_HD Donor donor(float h, const float hn[8], float tan_l, units_t available, float kc) {
-  Donor d = donor_shares(h, hn, tan_l, available, kc);
-  if (d.out > available) {
-    float b[8];
-    for (int k = 0; k < 8; ++k) b[k] = excess(h, hn[k], tan_l, neighbour(k).dist);
-    while (d.out > available) {
-      d.f *= 0.99999f;
-      d.out = 0;
-      for (int k = 0; k < 8; ++k) d.out += transfer(d.f, b[k]);
-    }
+  const Excess e = excesses(h, hn, tan_l);
+  Donor d{fraction(h, hn, tan_l, available, kc).f, 0, false};
+  d.out = outflow(d.f, e);
+  while (d.out > available) {
+    d.f *= 0.99999f;
+    d.out = outflow(d.f, e);
   }
   if (d.out == 0) {
     d.stuck = d.f > 0.0f;

@@ -16,14 +16,25 @@
 
 namespace erg::reptation {
 
-// Units moving from donor to receiver. dh = h_donor - h_receiver > 0 units;
-// dist_m = l |i - j|.
+// Units moving from donor to receiver. dh = h_donor - h_receiver >= 0 units;
+// dist_m = l |i - j|. The impact strengths enter as a sum, and float addition
+// is commutative, so their order does not matter.
 ERG_HD units_t transfer(units_t dh, float dist_m, float sr_donor, float sr_receiver,
                         units_t sand_donor, float k_r) {
-  const float slope = units_to_m(dh) / dist_m;                            // eq. 6
-  const float s_m = k_r * slope * (0.5f * (sr_donor + sr_receiver));      // eq. 7
+  const float slope = units_to_m(dh) / dist_m;                              // eq. 6
+  const float s_m = k_r * slope * (0.5f * (sr_donor + sr_receiver));        // eq. 7
   const units_t per_neighbour = floor_units(s_m * (0.125f * kUnitsPerMf));  // mean of 8
-  return min_of(per_neighbour, sand_donor >> 3);                          // eq. 8
+  return min_of(per_neighbour, sand_donor >> 3);                            // eq. 8
+}
+
+// Signed change of cell i from its exchange with neighbour j (heights h,
+// impact strengths sr, sand s). exchange(i, j) == -exchange(j, i) exactly:
+// the higher cell donates, and both evaluate the same transfer.
+ERG_HD units_t exchange(units_t h_i, units_t h_j, float sr_i, float sr_j, units_t s_i, units_t s_j,
+                        float dist_m, float k_r) {
+  const units_t dh = h_i - h_j;
+  const units_t t = transfer(dh < 0 ? -dh : dh, dist_m, sr_i, sr_j, dh > 0 ? s_i : s_j, k_r);
+  return dh > 0 ? -t : t;  // dh == 0 gives t == 0
 }
 
 }  // namespace erg::reptation

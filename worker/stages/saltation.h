@@ -35,15 +35,14 @@ struct Params {
 // (1) Lift: eps_S (1 - sigma)(1 - v), at most the sand present [N24 eq. 5].
 // Still air lifts nothing (a hop of length 0 would only churn the cell).
 ERG_HD units_t lift_expected(units_t sand, float shadow, float v, float wind_speed, const Params& p) {
-  if (!(wind_speed > 0.0f)) return 0;
   const units_t want = floor_units(p.slab_units * vegetation::lift_factor(shadow, v));
-  return min_of(want, sand);
+  return wind_speed > 0.0f ? min_of(want, sand) : 0;
 }
 // A whole slab is lifted with probability (1 - sigma)(1 - v) [P19 5.1].
 ERG_HD units_t lift_stochastic(units_t sand, float shadow, float v, float wind_speed, float u,
                                const Params& p) {
-  if (!(wind_speed > 0.0f) || !(u < vegetation::lift_factor(shadow, v))) return 0;
-  return min_of(floor_units(p.slab_units), sand);
+  const bool lifts = wind_speed > 0.0f && u < vegetation::lift_factor(shadow, v);
+  return lifts ? min_of(floor_units(p.slab_units), sand) : 0;
 }
 
 // (2) Landing point of an amount leaving local cell (x, y) under wind w, in
@@ -99,27 +98,26 @@ struct Impact {
 // `sand` is the cell's sand after lifting; `u` the deposit draw (stochastic).
 ERG_HD Impact impact(units_t landed, units_t sand, float shadow, float v, float resistance,
                      float wind_speed, float u, const Params& p) {
-  Impact r{0, 0, 0, 0.0f};
-  if (landed <= 0) return r;
+  // Branch-free (selects only), so the loop over cells vectorises.
   // Stochastic slabs see Werner's step (any sand); expected transport its mean.
-  const float sand_fraction =
-      p.stochastic ? (sand > 0 ? 1.0f : 0.0f)
-                   : (p.slab_units > 0.0f ? min_of(static_cast<float>(sand) / p.slab_units, 1.0f)
-                                          : (sand > 0 ? 1.0f : 0.0f));
+  // (The division is not conditional: a conditional one is not if-converted.)
+  const bool has_slab = p.slab_units > 0.0f;
+  const float ramp = min_of(static_cast<float>(sand) / (has_slab ? p.slab_units : 1.0f), 1.0f);
+  const float sand_fraction = (p.stochastic || !has_slab) ? (sand > 0 ? 1.0f : 0.0f) : ramp;
   const float beta = vegetation::deposition_probability(shadow, sand_fraction, v, p.deposit_on_sand,
                                                         p.deposit_on_bedrock);
-  if (p.stochastic) {
-    r.deposited = (u < beta) ? landed : 0;
-  } else {
-    r.deposited = min_of(floor_units(static_cast<float>(landed) * beta), landed);
-  }
+  const units_t expected = min_of(floor_units(static_cast<float>(landed) * beta), landed);
+  Impact r;
+  r.deposited = p.stochastic ? ((u < beta) ? landed : 0) : expected;
   r.bounced = landed - r.deposited;
   // Abrasion [P19 5.2]: k_a (1 - r) |w| (1 - v) per metre of sand bouncing on
   // thin sand (scaled by the bounced amount, [N24] 3.6).
-  if (p.abrasion_k > 0.0f && r.bounced > 0 && sand < p.abrasion_threshold) {
-    const float eps = p.abrasion_k * (1.0f - resistance) * wind_speed * vegetation::abrasion_factor(v);
-    r.abraded = max_of(floor_units(eps * static_cast<float>(r.bounced)), units_t{0});
-  }
+  // (The condition selects the rate, not the conversion: a conditional
+  // float-to-integer conversion is not if-converted, and blocks vectorising.)
+  const bool abrades = (p.abrasion_k > 0.0f) & (r.bounced > 0) & (sand < p.abrasion_threshold);
+  const float eps =
+      abrades ? p.abrasion_k * (1.0f - resistance) * wind_speed * vegetation::abrasion_factor(v) : 0.0f;
+  r.abraded = floor_units(eps * static_cast<float>(r.bounced));
   r.reptation_m = units_to_m(landed) * vegetation::reptation_factor(v);
   return r;
 }

@@ -26,9 +26,9 @@ namespace erg::wind_warping {
 ERG_HD Vec2 warp_one(Vec2 v, Vec2 grad, float deviation, float gradient_scale) {
   const Vec2 g = gradient_scale * grad;
   const float alpha = min_of(length(g), 1.0f);
-  Vec2 perp{-g.y, g.x};
-  if (dot(v, perp) < 0.0f) perp = -1.0f * perp;
-  return (1.0f - alpha) * v + (alpha * deviation) * perp;
+  const Vec2 perp{-g.y, g.x};
+  const float side = dot(v, perp) < 0.0f ? -1.0f : 1.0f;  // towards v
+  return (1.0f - alpha) * v + (side * (alpha * deviation)) * perp;
 }
 
 struct Params {
@@ -42,8 +42,9 @@ ERG_HD Vec2 warp(Vec2 v, Vec2 grad_large, Vec2 grad_small, const Params& p) {
   const Vec2 w = p.weight[0] * warp_one(v, grad_large, p.deviation[0], p.gradient_scale) +
                  p.weight[1] * warp_one(v, grad_small, p.deviation[1], p.gradient_scale);
   const float lw = length(w);
-  if (!(lw > 0.0f)) return v;
-  return (length(v) / lw) * w;
+  const bool ok = lw > 0.0f;  // (selects, no branch: the loop vectorises)
+  const float scale = length(v) / (ok ? lw : 1.0f);
+  return ok ? scale * w : v;
 }
 
 // Gaussian transfer function at physical wave numbers (cycles per metre):

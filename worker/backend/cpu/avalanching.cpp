@@ -1,12 +1,22 @@
 // Avalanching on the CPU (stages/avalanching.h), sand and bedrock.
 //
-// Each iteration is two gather passes over double-buffered heights; row
-// kernels are written so the compiler vectorises them (no early exits in the
-// common path; the rare corrections run in a scalar pass over the row).
-// Iterations stop early once nothing moved and nothing can move later: the
-// remaining iterations would be the identity, so the result is unchanged.
+// Each iteration is two gather passes: pass 1 computes every donor's
+// fraction f, pass 2 every cell's inflow and outflow (both sides evaluate the
+// same shares, so they agree to the unit), then the changed heights are
+// recomputed. Heights are read only from the previous iteration.
+//
+// Work is tracked in segments of 64 cells of a row. After the first
+// iteration, which visits every cell, an iteration visits only the segments
+// where something can happen: pass 1 where a height within two cells changed
+// in the last iteration (or where a donor still has f > 0), pass 2 within one
+// cell of a donor. Everywhere else the iteration is the identity, so the
+// result is exactly that of visiting every cell, at a fraction of the cost
+// once the terrain is mostly settled. Iterations stop once nothing moved and
+// nothing can move later.
 #include <algorithm>
+#include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "backend/cpu/cpu_backend.h"
 #include "stages/avalanching.h"
@@ -15,73 +25,87 @@ namespace erg::cpu {
 
 namespace {
 
-// Neighbour offsets in storage, in kNeighbours order.
-struct Offsets {
-  long o[8];
-  explicit Offsets(int pitch) {
+constexpr int kSegment = 64;
+constexpr units_t kUnlimited = std::numeric_limits<units_t>::max() / 4;
+
+struct Stencil {
+  long o[8];  // storage offsets of the neighbours, kNeighbours order
+  explicit Stencil(int pitch) {
     for (int k = 0; k < 8; ++k) o[k] = static_cast<long>(kNeighbours[k].dy) * pitch + kNeighbours[k].dx;
   }
 };
 
-constexpr units_t kUnlimited = std::numeric_limits<units_t>::max() / 4;
-
-struct RowFlags {
-  bool moved = false;
-  bool stuck = false;
-};
-
-// Pass 1 on one row: fraction and total sent by every donor.
+// Pass 1 on cells [x0, x1) of a row. Returns whether any f > 0.
 // kBedrock: unlimited supply and one repose tangent for all cells.
 template <bool kBedrock>
-RowFlags donor_row(const float* h, const float* tan_l, float tan_l_const, const units_t* sand,
-                   float kc, const Offsets& off, int n, float* frac, units_t* out) {
-  // Offsets in locals: loads through `off` inside the loop would not be
-  // hoisted (the stores to frac/out might alias it) and block vectorisation.
-  const long o0 = off.o[0], o1 = off.o[1], o2 = off.o[2], o3 = off.o[3];
-  const long o4 = off.o[4], o5 = off.o[5], o6 = off.o[6], o7 = off.o[7];
-  for (int x = 0; x < n; ++x) {
-    const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
-                         h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
-    const float t = kBedrock ? tan_l_const : tan_l[x];
-    const units_t avail = kBedrock ? kUnlimited : sand[x];
-    const avalanching::Donor d = avalanching::donor_shares(h[x], hn, t, avail, kc);
-    frac[x] = d.f;
-    out[x] = d.out;
+bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, const units_t* sand, float kc,
+                      const Stencil& st, int x0, int x1, float* __restrict frac) {
+  const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
+  const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
+  int checks = 0, positive = 0;
+  for (int x = x0; x < x1; ++x) {
+    const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3], h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
+    const avalanching::Fraction fr = avalanching::fraction(h[x], hn, kBedrock ? tan_l_const : tan_l[x],
+                                                           kBedrock ? kUnlimited : sand[x], kc);
+    frac[x] = fr.f;
+    checks += fr.check;
+    positive += fr.f > 0.0f;
   }
-  RowFlags flags;
-  for (int x = 0; x < n; ++x) {
-    const units_t avail = kBedrock ? kUnlimited : sand[x];
-    if (out[x] > avail || out[x] == 0) {
-      if (out[x] == 0 && frac[x] == 0.0f) continue;
-      float hn[8];
-      for (int k = 0; k < 8; ++k) hn[k] = h[x + off.o[k]];
+  if (checks > 0) {
+    // Rare: shares that might exceed the sand present; the complete donor()
+    // shrinks f until they fit.
+    for (int x = x0; x < x1; ++x) {
+      const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3], h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
       const float t = kBedrock ? tan_l_const : tan_l[x];
-      const avalanching::Donor d = avalanching::donor(h[x], hn, t, avail, kc);
-      frac[x] = d.f;
-      out[x] = d.out;
-      flags.stuck |= d.stuck;
+      const units_t avail = kBedrock ? kUnlimited : sand[x];
+      if (avalanching::fraction(h[x], hn, t, avail, kc).check) frac[x] = avalanching::donor(h[x], hn, t, avail, kc).f;
     }
-    flags.moved |= out[x] > 0;
   }
-  return flags;
+  return positive > 0;
 }
 
-// Pass 2 on one row: units each cell receives from its 8 neighbours.
+// Pass 2 on cells [x0, x1) of a row: net units each cell gains. Returns
+// whether any cell sent or received anything.
 template <bool kBedrock>
-void inflow_row(const float* h, const float* tan_l, float tan_l_const, const float* frac,
-                const Offsets& off, int n, units_t* in) {
-  for (int x = 0; x < n; ++x) {
-    units_t sum = 0;
-    ERG_UNROLL
-    for (int k = 0; k < 8; ++k) {
-      // The donor is the neighbour; it saw this cell in the opposite direction,
-      // at the same distance.
-      const long j = x + off.o[k];
-      const float t = kBedrock ? tan_l_const : tan_l[j];
-      sum += avalanching::inflow(frac[j], h[j], h[x], t, kNeighbours[k].dist);
-    }
-    in[x] = sum;
+bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, const float* frac, const Stencil& st,
+                      int x0, int x1, units_t* __restrict gain, units_t* __restrict loss) {
+  const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
+  const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
+  int active = 0;
+  for (int x = x0; x < x1; ++x) {
+    const float hx = h[x];
+    // The donor is the neighbour; it saw this cell in the opposite
+    // direction, at the same distance.
+    auto in = [=](long o, float dist) {
+      return avalanching::inflow(frac[x + o], h[x + o], hx, kBedrock ? tan_l_const : tan_l[x + o], dist);
+    };
+    const units_t received = in(o0, 1.0f) + in(o1, kSqrt2) + in(o2, 1.0f) + in(o3, kSqrt2) + in(o4, 1.0f) +
+                             in(o5, kSqrt2) + in(o6, 1.0f) + in(o7, kSqrt2);
+    const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3], h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
+    const units_t sent =
+        avalanching::outflow(frac[x], avalanching::excesses(hx, hn, kBedrock ? tan_l_const : tan_l[x]));
+    gain[x - x0] = received;
+    loss[x - x0] = sent;
+    active += (received | sent) != 0;
   }
+  return active > 0;
+}
+
+// Marks, in `out`, the segments within `dy` rows and one segment of a marked
+// segment of `in` (periodic in both directions).
+void dilate(const std::vector<std::uint8_t>& in, std::vector<std::uint8_t>& out, int rows, int segs, int dy) {
+  std::fill(out.begin(), out.end(), 0);
+  for (int y = 0; y < rows; ++y)
+    for (int s = 0; s < segs; ++s) {
+      if (!in[static_cast<size_t>(y) * segs + s]) continue;
+      for (int d = -dy; d <= dy; ++d) {
+        const int yy = ((y + d) % rows + rows) % rows;
+        std::uint8_t* r = out.data() + static_cast<size_t>(yy) * segs;
+        r[(s + segs - 1) % segs] = 1;
+        r[s] = 1;
+        r[(s + 1) % segs] = 1;
+      }
+    }
 }
 
 }  // namespace
@@ -89,79 +113,114 @@ void inflow_row(const float* h, const float* tan_l, float tan_l_const, const flo
 int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
   if (settled) *settled = false;
   if (iterations <= 0) return 0;
-  const Offsets off(g_.pitch);
-  const int n = g_.nx;
+  const Stencil st(g_.pitch);
+  const int nx = g_.nx, ny = g_.ny;
+  const int segs = (nx + kSegment - 1) / kSegment;
+  const size_t nseg = static_cast<size_t>(ny) * segs;
   Field<units_t>& target = bedrock ? bedrock_ : sand_;
+  const float tan_b = m_.tan_l_bedrock;
 
-  // Level-0 heights in metres.
+  // Heights in metres before the first iteration.
 #pragma omp parallel for num_threads(threads_) schedule(static)
-  for (int y = 0; y < g_.ny; ++y) {
+  for (int y = 0; y < ny; ++y) {
     const units_t* b = bedrock_.row(y);
     const units_t* s = sand_.row(y);
     float* h = h_a_.row(y);
-    for (int x = 0; x < n; ++x) h[x] = units_to_m(bedrock ? b[x] : b[x] + s[x]);
+    for (int x = 0; x < nx; ++x) h[x] = units_to_m(bedrock ? b[x] : b[x] + s[x]);
   }
   fill_halo_periodic(h_a_, 1);
 
-  const float kc_full = m_.kc;
+  std::vector<std::uint8_t> visit(nseg, 1), positive(nseg, 0), exchange(nseg, 0), changed(nseg, 0);
   int moved_iterations = 0;
   for (int it = 1; it <= iterations; ++it) {
-    const float kc = avalanching::kc_for(it, iterations, kc_full, m_.kc_damped);
-    bool moved = false, stuck = false;
-#pragma omp parallel for num_threads(threads_) schedule(static) reduction(|| : moved, stuck)
-    for (int y = 0; y < g_.ny; ++y) {
-      const RowFlags f =
-          bedrock ? donor_row<true>(h_a_.row(y), nullptr, m_.tan_l_bedrock, nullptr, kc, off, n,
-                                    frac_.row(y), out_.row(y))
-                  : donor_row<false>(h_a_.row(y), tan_l_.row(y), 0.0f, sand_.row(y), kc, off, n,
-                                     frac_.row(y), out_.row(y));
-      moved = moved || f.moved;
-      stuck = stuck || f.stuck;
+    const float kc = avalanching::kc_for(it, iterations, m_.kc, m_.kc_damped);
+
+    // Pass 1: fractions where heights may have changed, or donors remain.
+    bool any_positive = false;
+#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_positive)
+    for (int y = 0; y < ny; ++y)
+      for (int s = 0; s < segs; ++s) {
+        const size_t k = static_cast<size_t>(y) * segs + s;
+        if (!visit[k]) continue;
+        const int x0 = s * kSegment, x1 = std::min(nx, x0 + kSegment);
+        positive[k] = bedrock ? fraction_segment<true>(h_a_.row(y), nullptr, tan_b, nullptr, kc, st, x0, x1,
+                                                       frac_.row(y))
+                              : fraction_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f, sand_.row(y), kc, st,
+                                                        x0, x1, frac_.row(y));
+        any_positive = any_positive || positive[k];
+      }
+    if (!any_positive) {
+      // Every f is 0: nothing exceeds repose (or nothing is available), for
+      // any k_c. This and every later iteration are the identity.
+      if (settled) *settled = true;
+      break;
     }
-    if (!moved) {
-      // Nothing moved: the same heights come back next iteration. Only a
-      // larger k_c later could move a stuck donor.
+    fill_halo_periodic(frac_, 1);
+
+    // Pass 2: exchanges within one cell of a donor.
+    dilate(positive, exchange, ny, segs, 1);
+    if (m_.avalanche_everywhere) std::fill(exchange.begin(), exchange.end(), 1);
+    bool any_change = false;
+#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_change)
+    for (int y = 0; y < ny; ++y) {
+      units_t gain[kSegment], loss[kSegment];
+      for (int s = 0; s < segs; ++s) {
+        const size_t k = static_cast<size_t>(y) * segs + s;
+        changed[k] = 0;
+        if (!exchange[k]) continue;
+        const int x0 = s * kSegment, x1 = std::min(nx, x0 + kSegment);
+        const bool active =
+            bedrock ? exchange_segment<true>(h_a_.row(y), nullptr, tan_b, frac_.row(y), st, x0, x1, gain, loss)
+                    : exchange_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f, frac_.row(y), st, x0, x1, gain,
+                                              loss);
+        if (!active) continue;
+        // Pass 2 reads only heights and fractions, so the layers can be
+        // updated in place.
+        units_t* t = target.row(y);
+        units_t* sd = sand_.row(y);
+        if (bedrock && m_.bedrock_to_sand) {
+          // Fallen rock breaks into sand where it lands [N24 3.8].
+          for (int x = x0; x < x1; ++x) {
+            t[x] -= loss[x - x0];
+            sd[x] += gain[x - x0];
+          }
+        } else {
+          for (int x = x0; x < x1; ++x) t[x] += gain[x - x0] - loss[x - x0];
+        }
+        changed[k] = 1;
+        any_change = true;
+      }
+    }
+    if (!any_change) {
+      // Donors exist but every share rounds to 0. Only a larger k_c later
+      // could move them.
       bool larger_kc_later = false;
       for (int j = it + 1; j <= iterations; ++j)
-        larger_kc_later |= avalanching::kc_for(j, iterations, kc_full, m_.kc_damped) > kc;
-      if (settled) *settled = !stuck;
-      if (!stuck || !larger_kc_later) break;
+        larger_kc_later |= avalanching::kc_for(j, iterations, m_.kc, m_.kc_damped) > kc;
+      if (!larger_kc_later) break;
+      visit = positive;
+      if (m_.avalanche_everywhere) std::fill(visit.begin(), visit.end(), 1);
       continue;
     }
     ++moved_iterations;
-    fill_halo_periodic(frac_, 1);
 
-#pragma omp parallel for num_threads(threads_) schedule(static)
-    for (int y = 0; y < g_.ny; ++y) {
-      units_t* in = sand_next_.row(y);  // scratch: inflow, then the new layer
-      if (bedrock) inflow_row<true>(h_a_.row(y), nullptr, m_.tan_l_bedrock, frac_.row(y), off, n, in);
-      else inflow_row<false>(h_a_.row(y), tan_l_.row(y), 0.0f, frac_.row(y), off, n, in);
-      const units_t* out = out_.row(y);
-      units_t* t = target.row(y);
-      units_t* s = sand_.row(y);
-      const units_t* b = bedrock_.row(y);
-      float* h = h_b_.row(y);
-      if (!bedrock) {
-        for (int x = 0; x < n; ++x) {
-          t[x] = t[x] - out[x] + in[x];
-          h[x] = units_to_m(b[x] + t[x]);
-        }
-      } else if (m_.bedrock_to_sand) {
-        // Fallen rock breaks into sand where it lands [N24 3.8].
-        for (int x = 0; x < n; ++x) {
-          t[x] -= out[x];
-          s[x] += in[x];
-          h[x] = units_to_m(t[x]);
-        }
-      } else {
-        for (int x = 0; x < n; ++x) {
-          t[x] = t[x] - out[x] + in[x];
-          h[x] = units_to_m(t[x]);
-        }
+    // New heights where layers changed (after pass 2: it read the old ones).
+#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4)
+    for (int y = 0; y < ny; ++y)
+      for (int s = 0; s < segs; ++s) {
+        if (!changed[static_cast<size_t>(y) * segs + s]) continue;
+        const int x0 = s * kSegment, x1 = std::min(nx, x0 + kSegment);
+        const units_t* b = bedrock_.row(y);
+        const units_t* sd = sand_.row(y);
+        float* h = h_a_.row(y);
+        for (int x = x0; x < x1; ++x) h[x] = units_to_m(bedrock ? b[x] : b[x] + sd[x]);
       }
-    }
-    h_a_.swap(h_b_);
     fill_halo_periodic(h_a_, 1);
+
+    // Next pass 1: within two cells of a change, and wherever donors remain
+    // (k_c may change their f).
+    dilate(changed, visit, ny, segs, 2);
+    for (size_t k = 0; k < nseg; ++k) visit[k] |= positive[k] | static_cast<std::uint8_t>(m_.avalanche_everywhere);
   }
   return moved_iterations;
 }
@@ -172,8 +231,8 @@ int CpuBackend::avalanche_sand() {
 }
 
 // Bedrock only changes by abrasion and events. Once an avalanche found it
-// settled (nothing moved, no donor waiting for a larger k_c), running it again
-// on the same bedrock is the identity, so it is skipped until bedrock changes.
+// settled (no cell exceeds the bedrock repose angle), running it again on
+// the same bedrock is the identity, so it is skipped until bedrock changes.
 void CpuBackend::avalanche_bedrock() {
   if (!bedrock_changed_) return;
   bool settled = false;

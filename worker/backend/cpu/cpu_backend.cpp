@@ -67,6 +67,7 @@ CpuBackend::CpuBackend(const Model& model, int threads)
   shadow_.reset(g_);
   landed_.reset(g_);
   reptation_.reset(g_);
+  height_units_.reset(g_);
   tan_l_.reset(g_);
   sand_next_.reset(g_);
   h_a_.reset(g_);

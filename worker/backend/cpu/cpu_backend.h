@@ -83,6 +83,7 @@ class CpuBackend final : public Backend {
   Field<float> wind_x_, wind_y_, shadow_;
   Field<units_t> landed_;   // saltation scatter target (halo for the hop reach)
   Field<float> reptation_;  // s_r
+  Field<units_t> height_units_;  // b + s, for reptation
   Field<float> tan_l_;      // tan(repose(v)) * l for sand
   // avalanching work buffers
   Field<units_t> sand_next_;
@@ -92,8 +93,11 @@ class CpuBackend final : public Backend {
   CoarseSmoother smoother_;
   std::vector<double> coarse_h_;
   std::vector<float> grad_x_[2], grad_y_[2];
-  std::vector<wind_warping::Axis> axis_x_, axis_y_;  // coarse interpolation stencils
-  std::vector<float> block_max_;                     // shadow: height bounds per block
+  // Coarse interpolation stencils: per column (as arrays) and per row.
+  std::vector<int> axis_x_i0_, axis_x_i1_;
+  std::vector<float> axis_x_t_;
+  std::vector<wind_warping::Axis> axis_y_;
+  std::vector<float> block_max_, bound_;  // shadow: height maxima and bounds per block
 };
 
 }  // namespace erg::cpu

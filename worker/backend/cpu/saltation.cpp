@@ -8,6 +8,64 @@
 
 namespace erg::cpu {
 
+namespace {
+
+// Row kernels live outside the OpenMP regions, with restrict-qualified
+// outputs, so that GCC vectorises them (it does not inside the regions).
+void lift_row(units_t* __restrict s, units_t* __restrict air, const float* sh, const float* v, const float* wx,
+              const float* wy, const TileGeom& g, int y, std::uint64_t seed, std::uint64_t step,
+              const saltation::Params& p) {
+  const int nx = g.nx;
+  if (p.stochastic) {
+    for (int x = 0; x < nx; ++x) {
+      const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLift).v[0]);
+      const units_t q = saltation::lift_stochastic(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), u, p);
+      s[x] -= q;
+      air[x] += q;
+    }
+  } else {
+    for (int x = 0; x < nx; ++x) {
+      const units_t q = saltation::lift_expected(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), p);
+      s[x] -= q;
+      air[x] += q;
+    }
+  }
+}
+
+// Returns whether any bedrock was abraded.
+bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b, units_t* __restrict air,
+                const float* sh, const float* v, const float* r, const float* wx, const float* wy,
+                float* __restrict sr, const TileGeom& g, int y, std::uint64_t seed, std::uint64_t step,
+                const saltation::Params& p) {
+  const int nx = g.nx;
+  units_t abraded = 0;
+  if (p.stochastic) {
+    for (int x = 0; x < nx; ++x) {
+      const float u =
+          in[x] > 0 ? u01(random4(seed, step, g.global_index(x, y), RandomStream::kDeposit).v[0]) : 0.0f;
+      const saltation::Impact im = saltation::impact(in[x], s[x], sh[x], v[x], r[x], length(Vec2{wx[x], wy[x]}), u, p);
+      s[x] += im.deposited + im.abraded;
+      b[x] -= im.abraded;
+      air[x] = im.bounced;
+      sr[x] = im.reptation_m;
+      abraded |= im.abraded;
+    }
+  } else {
+    for (int x = 0; x < nx; ++x) {
+      const saltation::Impact im =
+          saltation::impact(in[x], s[x], sh[x], v[x], r[x], length(Vec2{wx[x], wy[x]}), 0.0f, p);
+      s[x] += im.deposited + im.abraded;
+      b[x] -= im.abraded;
+      air[x] = im.bounced;
+      sr[x] = im.reptation_m;
+      abraded |= im.abraded;
+    }
+  }
+  return abraded != 0;
+}
+
+}  // namespace
+
 void CpuBackend::saltation(std::int64_t step) {
   const saltation::Params p = m_.saltation;
   const std::uint64_t seed = m_.seed;
@@ -15,28 +73,9 @@ void CpuBackend::saltation(std::int64_t step) {
 
   // (1) Lift into the airborne buffer (which holds last step's bounces).
 #pragma omp parallel for num_threads(threads_) schedule(static)
-  for (int y = 0; y < g_.ny; ++y) {
-    units_t* s = sand_.row(y);
-    units_t* air = airborne_.row(y);
-    const float* sh = shadow_.row(y);
-    const float* v = vegetation_.row(y);
-    const float* wx = wind_x_.row(y);
-    const float* wy = wind_y_.row(y);
-    if (p.stochastic) {
-      for (int x = 0; x < g_.nx; ++x) {
-        const float u = u01(random4(seed, ustep, g_.global_index(x, y), RandomStream::kLift).v[0]);
-        const units_t q = saltation::lift_stochastic(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), u, p);
-        s[x] -= q;
-        air[x] += q;
-      }
-    } else {
-      for (int x = 0; x < g_.nx; ++x) {
-        const units_t q = saltation::lift_expected(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), p);
-        s[x] -= q;
-        air[x] += q;
-      }
-    }
-  }
+  for (int y = 0; y < g_.ny; ++y)
+    lift_row(sand_.row(y), airborne_.row(y), shadow_.row(y), vegetation_.row(y), wind_x_.row(y), wind_y_.row(y),
+             g_, y, seed, ustep, p);
 
   // (2) Scatter one hop downwind into `landed_` (owned + ghosts). Rows are cut
   // into bands taller than twice the hop reach; even bands run in parallel,
@@ -81,30 +120,11 @@ void CpuBackend::saltation(std::int64_t step) {
   // (3) Deposit, bounce, abrade; record the reptation strength.
   bool abraded = false;
 #pragma omp parallel for num_threads(threads_) schedule(static) reduction(|| : abraded)
-  for (int y = 0; y < g_.ny; ++y) {
-    const units_t* in = landed_.row(y);
-    units_t* s = sand_.row(y);
-    units_t* b = bedrock_.row(y);
-    units_t* air = airborne_.row(y);
-    const float* sh = shadow_.row(y);
-    const float* v = vegetation_.row(y);
-    const float* r = resistance_.row(y);
-    const float* wx = wind_x_.row(y);
-    const float* wy = wind_y_.row(y);
-    float* sr = reptation_.row(y);
-    for (int x = 0; x < g_.nx; ++x) {
-      float u = 0.0f;
-      if (p.stochastic && in[x] > 0)
-        u = u01(random4(seed, ustep, g_.global_index(x, y), RandomStream::kDeposit).v[0]);
-      const saltation::Impact im =
-          saltation::impact(in[x], s[x], sh[x], v[x], r[x], length(Vec2{wx[x], wy[x]}), u, p);
-      s[x] += im.deposited + im.abraded;
-      b[x] -= im.abraded;
-      air[x] = im.bounced;
-      sr[x] = im.reptation_m;
-      abraded = abraded || im.abraded > 0;
-    }
-  }
+  for (int y = 0; y < g_.ny; ++y)
+    abraded = impact_row(landed_.row(y), sand_.row(y), bedrock_.row(y), airborne_.row(y), shadow_.row(y),
+                         vegetation_.row(y), resistance_.row(y), wind_x_.row(y), wind_y_.row(y),
+                         reptation_.row(y), g_, y, seed, ustep, p) ||
+              abraded;
   if (abraded) bedrock_changed_ = true;
 }
 

@@ -72,6 +72,25 @@ void CoarseSmoother::gradients(const std::vector<double>& heights, std::vector<f
   }
 }
 
+namespace {
+// Venturi and warping along one row (outside the OpenMP region so that GCC
+// vectorises it).
+void warp_row(const float* h, float* __restrict wx, float* __restrict wy, int nx, Vec2 a, float k,
+              const wind_warping::Params wp, const int* ax_i0, const int* ax_i1, const float* ax_t,
+              wind_warping::Axis ay, int cnx, const float* gx0, const float* gy0, const float* gx1,
+              const float* gy1) {
+  for (int x = 0; x < nx; ++x) {
+    const wind_warping::Axis ax{ax_i0[x], ax_i1[x], ax_t[x]};
+    const Vec2 v = venturi::wind(a, h[x], k);
+    const Vec2 gl{wind_warping::sample_at(gx0, cnx, ax, ay), wind_warping::sample_at(gy0, cnx, ax, ay)};
+    const Vec2 gs{wind_warping::sample_at(gx1, cnx, ax, ay), wind_warping::sample_at(gy1, cnx, ax, ay)};
+    const Vec2 w = wind_warping::warp(v, gl, gs, wp);
+    wx[x] = w.x;
+    wy[x] = w.y;
+  }
+}
+}  // namespace
+
 void CpuBackend::wind(Vec2 a) {
   const CoarseGrid& c = m_.coarse;
   // Heights in metres (owned + the ghosts the shadow march reads).
@@ -103,30 +122,20 @@ void CpuBackend::wind(Vec2 a) {
   const float k = m_.venturi_k;
   const wind_warping::Params wp = m_.warp;
   // Interpolation stencils depend only on the column or the row.
-  if (axis_x_.empty()) {
-    for (int x = 0; x < g_.nx; ++x) axis_x_.push_back(wind_warping::coarse_axis(g_.x0 + x, c.cx, c.nx));
+  if (axis_y_.empty()) {
+    for (int x = 0; x < g_.nx; ++x) {
+      const wind_warping::Axis ax = wind_warping::coarse_axis(g_.x0 + x, c.cx, c.nx);
+      axis_x_i0_.push_back(ax.i0);  // structure of arrays: gathers vectorise
+      axis_x_i1_.push_back(ax.i1);
+      axis_x_t_.push_back(ax.t);
+    }
     for (int y = 0; y < g_.ny; ++y) axis_y_.push_back(wind_warping::coarse_axis(g_.y0 + y, c.cy, c.ny));
   }
-  const float* gx0 = grad_x_[0].data();
-  const float* gy0 = grad_y_[0].data();
-  const float* gx1 = grad_x_[1].data();
-  const float* gy1 = grad_y_[1].data();
 #pragma omp parallel for num_threads(threads_) schedule(static)
-  for (int y = 0; y < g_.ny; ++y) {
-    const float* h = height_m_.row(y);
-    float* wx = wind_x_.row(y);
-    float* wy = wind_y_.row(y);
-    const wind_warping::Axis ay = axis_y_[static_cast<size_t>(y)];
-    for (int x = 0; x < g_.nx; ++x) {
-      const wind_warping::Axis ax = axis_x_[static_cast<size_t>(x)];
-      const Vec2 v = venturi::wind(a, h[x], k);
-      const Vec2 gl{wind_warping::sample_at(gx0, c.nx, ax, ay), wind_warping::sample_at(gy0, c.nx, ax, ay)};
-      const Vec2 gs{wind_warping::sample_at(gx1, c.nx, ax, ay), wind_warping::sample_at(gy1, c.nx, ax, ay)};
-      const Vec2 w = wind_warping::warp(v, gl, gs, wp);
-      wx[x] = w.x;
-      wy[x] = w.y;
-    }
-  }
+  for (int y = 0; y < g_.ny; ++y)
+    warp_row(height_m_.row(y), wind_x_.row(y), wind_y_.row(y), g_.nx, a, k, wp, axis_x_i0_.data(),
+             axis_x_i1_.data(), axis_x_t_.data(), axis_y_[static_cast<size_t>(y)], c.nx, grad_x_[0].data(), grad_y_[0].data(), grad_x_[1].data(),
+             grad_y_[1].data());
 }
 
 }  // namespace erg::cpu
