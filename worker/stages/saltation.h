@@ -53,14 +53,10 @@ struct Landing {
 };
 ERG_HD Landing landing(int x, int y, Vec2 w, const Params& p) {
   const float speed = length(w);
-  float sx = 0.0f, sy = 0.0f;
-  if (speed > 0.0f) {
-    const float hop_m = min_of(speed * p.hop_time_s, p.max_hop_m);
-    const float scale = hop_m / (speed * p.cell_m);
-    sx = w.x * scale;
-    sy = w.y * scale;
-  }
-  const float tx = static_cast<float>(x) + sx, ty = static_cast<float>(y) + sy;
+  const bool moving = speed > 0.0f;  // (selects, no branch: loops vectorise)
+  const float hop_m = min_of(speed * p.hop_time_s, p.max_hop_m);
+  const float scale = moving ? hop_m / ((moving ? speed : 1.0f) * p.cell_m) : 0.0f;
+  const float tx = static_cast<float>(x) + w.x * scale, ty = static_cast<float>(y) + w.y * scale;
   const float x0 = floorf(tx), y0 = floorf(ty);
   return {static_cast<int>(x0), static_cast<int>(y0), tx - x0, ty - y0};
 }

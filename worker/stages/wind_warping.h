@@ -70,10 +70,14 @@ ERG_HD Axis coarse_axis(int g, int c, int n) {
   i0 = (i0 % n + n) % n;
   return {i0, (i0 + 1) % n, f - f0};
 }
+// Interpolate along y first (between two coarse rows, at column i), then
+// along x. The CPU does the first part once per row of cells.
+ERG_HD float lerp_rows(const float* coarse, int nx, Axis ay, int i) {
+  return (1.0f - ay.t) * coarse[ay.i0 * nx + i] + ay.t * coarse[ay.i1 * nx + i];
+}
+ERG_HD float lerp_columns(float at_i0, float at_i1, Axis ax) { return (1.0f - ax.t) * at_i0 + ax.t * at_i1; }
 ERG_HD float sample_at(const float* coarse, int nx, Axis ax, Axis ay) {
-  const float a = coarse[ay.i0 * nx + ax.i0], b = coarse[ay.i0 * nx + ax.i1];
-  const float c = coarse[ay.i1 * nx + ax.i0], d = coarse[ay.i1 * nx + ax.i1];
-  return (1.0f - ay.t) * ((1.0f - ax.t) * a + ax.t * b) + ay.t * ((1.0f - ax.t) * c + ax.t * d);
+  return lerp_columns(lerp_rows(coarse, nx, ay, ax.i0), lerp_rows(coarse, nx, ay, ax.i1), ax);
 }
 // The same, at global fine cell (gx, gy) of a coarse grid cnx x cny with
 // cx x cy fine cells per coarse cell.

@@ -1,6 +1,7 @@
 // Saltation on the CPU (stages/saltation.h): lift, scatter of airborne sand
 // one hop downwind, reverse halo accumulation, deposition/bounce/abrasion.
 #include <algorithm>
+#include <vector>
 
 #include "backend/cpu/cpu_backend.h"
 #include "core/philox.h"
@@ -64,6 +65,43 @@ bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
   return abraded != 0;
 }
 
+// Expected transport: where each cell's airborne sand lands (storage index
+// of the lower-left receiving cell) and its exact four-way split. Empties
+// the airborne buffer (everything is in flight).
+void split_row(units_t* __restrict air, const float* __restrict wx, const float* __restrict wy, int nx, int y,
+               long origin, long pitch, const saltation::Params p, long* __restrict target,
+               units_t* __restrict parts) {
+  // (Parameters by value: int64 stores could alias fields read through a
+  // reference, which would block vectorisation.)
+  for (int x = 0; x < nx; ++x) {
+    const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, p);
+    units_t q[4];
+    saltation::split_bilinear(air[x], L.fx, L.fy, q);
+    target[x] = origin + static_cast<long>(L.y0) * pitch + L.x0;
+    parts[4 * x] = q[0];
+    parts[4 * x + 1] = q[1];
+    parts[4 * x + 2] = q[2];
+    parts[4 * x + 3] = q[3];
+    air[x] = 0;
+  }
+}
+
+// Stochastic transport: each cell's airborne sand lands whole in one of the
+// four cells, drawn with the bilinear weights.
+void scatter_row_stochastic(units_t* air, const float* wx, const float* wy, const TileGeom& g, int y,
+                            std::uint64_t seed, std::uint64_t step, const saltation::Params& p,
+                            Field<units_t>& landed) {
+  for (int x = 0; x < g.nx; ++x) {
+    const units_t a = air[x];
+    if (a == 0) continue;
+    air[x] = 0;
+    const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, p);
+    const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLanding).v[0]);
+    const int k = saltation::pick_corner(L.fx, L.fy, u);
+    landed(L.x0 + (k & 1), L.y0 + (k >> 1)) += a;
+  }
+}
+
 }  // namespace
 
 void CpuBackend::saltation(std::int64_t step) {
@@ -89,26 +127,25 @@ void CpuBackend::saltation(std::int64_t step) {
 #pragma omp parallel for num_threads(threads_) schedule(dynamic, 1)
     for (int bi = parity; bi < nbands; bi += 2) {
       const int y_begin = bi * g_.ny / nbands, y_end = (bi + 1) * g_.ny / nbands;
+      std::vector<long> target(static_cast<size_t>(g_.nx));
+      std::vector<units_t> parts(4 * static_cast<size_t>(g_.nx));
       for (int y = y_begin; y < y_end; ++y) {
-        units_t* air = airborne_.row(y);
-        const float* wx = wind_x_.row(y);
-        const float* wy = wind_y_.row(y);
-        for (int x = 0; x < g_.nx; ++x) {
-          const units_t a = air[x];
-          if (a == 0) continue;
-          air[x] = 0;
-          const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, p);
-          if (p.stochastic) {
-            const float u = u01(random4(seed, ustep, g_.global_index(x, y), RandomStream::kLanding).v[0]);
-            const int k = saltation::pick_corner(L.fx, L.fy, u);
-            landed_(L.x0 + (k & 1), L.y0 + (k >> 1)) += a;
-          } else {
-            units_t q[4];
-            saltation::split_bilinear(a, L.fx, L.fy, q);
-            landed_(L.x0, L.y0) += q[0];
-            landed_(L.x0 + 1, L.y0) += q[1];
-            landed_(L.x0, L.y0 + 1) += q[2];
-            landed_(L.x0 + 1, L.y0 + 1) += q[3];
+        if (p.stochastic) {
+          scatter_row_stochastic(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_, y, seed, ustep, p, landed_);
+        } else {
+          // Landing points and exact splits in a vectorised pass, then the
+          // adds (which may collide) in a scalar one.
+          split_row(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_.nx, y, static_cast<long>(g_.at(0, 0)),
+                    g_.pitch, p, target.data(), parts.data());
+          units_t* base = landed_.data();
+          const long pitch = g_.pitch;
+          for (int x = 0; x < g_.nx; ++x) {
+            const size_t k = 4 * static_cast<size_t>(x);
+            const long t = target[static_cast<size_t>(x)];
+            base[t] += parts[k];
+            base[t + 1] += parts[k + 1];
+            base[t + pitch] += parts[k + 2];
+            base[t + pitch + 1] += parts[k + 3];
           }
         }
       }

@@ -1,6 +1,7 @@
 // Surface wind on the CPU: venturi and multi-scale warping
 // (stages/venturi.h, stages/wind_warping.h).
 #include <cmath>
+#include <vector>
 
 #include "backend/cpu/cpu_backend.h"
 #include "stages/venturi.h"
@@ -74,16 +75,19 @@ void CoarseSmoother::gradients(const std::vector<double>& heights, std::vector<f
 
 namespace {
 // Venturi and warping along one row (outside the OpenMP region so that GCC
-// vectorises it).
+// vectorises it). rows[f] holds the four gradient fields already
+// interpolated to this row's y (wind_warping::lerp_rows).
 void warp_row(const float* h, float* __restrict wx, float* __restrict wy, int nx, Vec2 a, float k,
-              const wind_warping::Params wp, const int* ax_i0, const int* ax_i1, const float* ax_t,
-              wind_warping::Axis ay, int cnx, const float* gx0, const float* gy0, const float* gx1,
-              const float* gy1) {
+              const wind_warping::Params wp, const int* __restrict ax_i0, const int* __restrict ax_i1,
+              const float* __restrict ax_t, const float* __restrict gx0, const float* __restrict gy0,
+              const float* __restrict gx1, const float* __restrict gy1) {
   for (int x = 0; x < nx; ++x) {
     const wind_warping::Axis ax{ax_i0[x], ax_i1[x], ax_t[x]};
     const Vec2 v = venturi::wind(a, h[x], k);
-    const Vec2 gl{wind_warping::sample_at(gx0, cnx, ax, ay), wind_warping::sample_at(gy0, cnx, ax, ay)};
-    const Vec2 gs{wind_warping::sample_at(gx1, cnx, ax, ay), wind_warping::sample_at(gy1, cnx, ax, ay)};
+    const Vec2 gl{wind_warping::lerp_columns(gx0[ax.i0], gx0[ax.i1], ax),
+                  wind_warping::lerp_columns(gy0[ax.i0], gy0[ax.i1], ax)};
+    const Vec2 gs{wind_warping::lerp_columns(gx1[ax.i0], gx1[ax.i1], ax),
+                  wind_warping::lerp_columns(gy1[ax.i0], gy1[ax.i1], ax)};
     const Vec2 w = wind_warping::warp(v, gl, gs, wp);
     wx[x] = w.x;
     wy[x] = w.y;
@@ -93,30 +97,29 @@ void warp_row(const float* h, float* __restrict wx, float* __restrict wy, int nx
 
 void CpuBackend::wind(Vec2 a) {
   const CoarseGrid& c = m_.coarse;
-  // Heights in metres (owned + the ghosts the shadow march reads).
+  // One pass over the layers: heights in metres, and the exact block sums of
+  // the coarse grid (int64 per row of a block, 128 bits per block). This tile
+  // is the whole domain; in a tiled run the same integer sums are added
+  // across ranks.
 #pragma omp parallel for num_threads(threads_) schedule(static)
-  for (int y = 0; y < g_.ny; ++y) {
-    const units_t* b = bedrock_.row(y);
-    const units_t* s = sand_.row(y);
-    float* h = height_m_.row(y);
-    for (int x = 0; x < g_.nx; ++x) h[x] = units_to_m(b[x] + s[x]);
+  for (int J = 0; J < c.ny; ++J) {
+    std::vector<total_t> sums(static_cast<size_t>(c.nx), 0);
+    for (int y = J * c.cy; y < (J + 1) * c.cy; ++y) {
+      const units_t* b = bedrock_.row(y);
+      const units_t* s = sand_.row(y);
+      float* h = height_m_.row(y);
+      for (int x = 0; x < g_.nx; ++x) h[x] = units_to_m(b[x] + s[x]);
+      for (int I = 0; I < c.nx; ++I) {
+        units_t row = 0;
+        for (int x = I * c.cx; x < (I + 1) * c.cx; ++x) row += b[x] + s[x];
+        sums[static_cast<size_t>(I)] += row;
+      }
+    }
+    for (int I = 0; I < c.nx; ++I)
+      coarse_h_[static_cast<size_t>(J) * c.nx + I] =
+          static_cast<double>(sums[static_cast<size_t>(I)]) * kUnitM / (static_cast<double>(c.cx) * c.cy);
   }
   fill_halo_periodic(height_m_, m_.halo_shadow());
-
-  // Exact block sums into the coarse grid. This tile is the whole domain; in
-  // a tiled run the same integer sums are added across ranks.
-#pragma omp parallel for num_threads(threads_) schedule(static)
-  for (int J = 0; J < c.ny; ++J)
-    for (int I = 0; I < c.nx; ++I) {
-      total_t sum = 0;
-      for (int y = J * c.cy; y < (J + 1) * c.cy; ++y) {
-        const units_t* b = bedrock_.row(y);
-        const units_t* s = sand_.row(y);
-        for (int x = I * c.cx; x < (I + 1) * c.cx; ++x) sum += b[x] + s[x];
-      }
-      coarse_h_[static_cast<size_t>(J) * c.nx + I] =
-          static_cast<double>(sum) * kUnitM / (static_cast<double>(c.cx) * c.cy);
-    }
   smoother_.gradients(coarse_h_, grad_x_, grad_y_);
 
   const float k = m_.venturi_k;
@@ -132,10 +135,17 @@ void CpuBackend::wind(Vec2 a) {
     for (int y = 0; y < g_.ny; ++y) axis_y_.push_back(wind_warping::coarse_axis(g_.y0 + y, c.cy, c.ny));
   }
 #pragma omp parallel for num_threads(threads_) schedule(static)
-  for (int y = 0; y < g_.ny; ++y)
+  for (int y = 0; y < g_.ny; ++y) {
+    const wind_warping::Axis ay = axis_y_[static_cast<size_t>(y)];
+    std::vector<float> rows(4 * static_cast<size_t>(c.nx));
+    const std::vector<float>* fields[4] = {&grad_x_[0], &grad_y_[0], &grad_x_[1], &grad_y_[1]};
+    for (int f = 0; f < 4; ++f)
+      for (int i = 0; i < c.nx; ++i)
+        rows[static_cast<size_t>(f) * c.nx + i] = wind_warping::lerp_rows(fields[f]->data(), c.nx, ay, i);
     warp_row(height_m_.row(y), wind_x_.row(y), wind_y_.row(y), g_.nx, a, k, wp, axis_x_i0_.data(),
-             axis_x_i1_.data(), axis_x_t_.data(), axis_y_[static_cast<size_t>(y)], c.nx, grad_x_[0].data(), grad_y_[0].data(), grad_x_[1].data(),
-             grad_y_[1].data());
+             axis_x_i1_.data(), axis_x_t_.data(), rows.data(), rows.data() + c.nx, rows.data() + 2 * c.nx,
+             rows.data() + 3 * c.nx);
+  }
 }
 
 }  // namespace erg::cpu
