@@ -1,6 +1,6 @@
 // Reptation on the GPU (stages/reptation.h), as backend/cpu/reptation.cpp:
 // one gather pass into a second buffer (donor and receiver evaluate the same
-// transfer() call, so no atomics are needed), then a swap.
+// exchange() call, so no atomics are needed), then a swap.
 #include "backend/cuda/cuda_backend.h"
 #include "stages/reptation.h"
 
@@ -19,10 +19,8 @@ __global__ void reptation_kernel(TileGeom g, Offsets off, float k_r, const units
   for (int k = 0; k < 8; ++k) {
     const long long j = i + off.o[k];
     const units_t hj = bedrock[j] + sand[j];
-    const float dist_m = l * neighbour(k).dist;
-    // The higher cell donates; both sides evaluate the same call.
-    if (hi > hj) delta -= reptation::transfer(hi - hj, dist_m, strength[i], strength[j], sand[i], k_r);
-    else if (hj > hi) delta += reptation::transfer(hj - hi, dist_m, strength[j], strength[i], sand[j], k_r);
+    // The higher cell donates; both sides evaluate the same exchange.
+    delta += reptation::exchange(hi, hj, strength[i], strength[j], sand[i], sand[j], l * neighbour(k).dist, k_r);
   }
   next[i] = sand[i] + delta;
 }
