@@ -31,7 +31,9 @@ std::map<std::string, std::string> parse_flat_json(const std::string& line) {
   std::map<std::string, std::string> out;
   size_t i = 0;
   auto skip = [&] {
-    while (i < line.size() && (line[i] == ' ' || line[i] == ',' || line[i] == '{' || line[i] == '}')) ++i;
+    while (i < line.size() &&
+           (line[i] == ' ' || line[i] == ',' || line[i] == '{' || line[i] == '}'))
+      ++i;
   };
   while (i < line.size()) {
     skip();
@@ -70,8 +72,10 @@ std::string fmt_duration(double s) {
   if (!(s >= 0) || s > 1e8) return "--:--";
   const long t = static_cast<long>(s + 0.5);
   char buf[32];
-  if (t >= 3600) std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", t / 3600, (t / 60) % 60, t % 60);
-  else std::snprintf(buf, sizeof buf, "%ld:%02ld", t / 60, t % 60);
+  if (t >= 3600)
+    std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", t / 3600, (t / 60) % 60, t % 60);
+  else
+    std::snprintf(buf, sizeof buf, "%ld:%02ld", t / 60, t % 60);
   return buf;
 }
 
@@ -91,8 +95,10 @@ class ProgressBar {
     std::string bar(static_cast<size_t>(filled), '#');
     bar.resize(kWidth, '.');
     char line[256];
-    std::snprintf(line, sizeof line, "step %lld/%lld [%s] %3d%%  %.2f steps/s  ETA %s  snapshots %d", step,
-                  steps, bar.c_str(), static_cast<int>(frac * 100), rate, fmt_duration(eta).c_str(), snapshots_);
+    std::snprintf(line, sizeof line,
+                  "step %lld/%lld [%s] %3d%%  %.2f steps/s  ETA %s  snapshots %d", step, steps,
+                  bar.c_str(), static_cast<int>(frac * 100), rate, fmt_duration(eta).c_str(),
+                  snapshots_);
     std::cerr << (tty_ ? "\r" : "") << line << (tty_ ? "\033[K" : "\n") << std::flush;
     drawn_ = true;
   }
@@ -131,7 +137,8 @@ int cmd_run(const std::vector<std::string>& args) {
   erg::job::RunFlags flags;
   try {
     flags = erg::job::parse_run_flags(args);
-    if (flags.resume_dir.empty()) (void)erg::job::load_job_file(flags.job_path);  // fail fast, one place
+    if (flags.resume_dir.empty())
+      (void)erg::job::load_job_file(flags.job_path);  // fail fast, one place
   } catch (const erg::job::SpecError& e) {
     std::cerr << "erg: invalid job:\n" << e.what() << "\n";
     return 2;
@@ -187,18 +194,19 @@ int cmd_run(const std::vector<std::string>& args) {
       const std::string& kind = ev.count("event") ? ev.at("event") : "";
       auto num = [&](const char* k) { return ev.count(k) ? std::atof(ev.at(k).c_str()) : 0.0; };
       if (kind == "progress") {
-        bar.update(static_cast<long long>(num("step")), static_cast<long long>(num("steps")), num("steps_per_s"),
-                   num("eta_s"));
+        bar.update(static_cast<long long>(num("step")), static_cast<long long>(num("steps")),
+                   num("steps_per_s"), num("eta_s"));
       } else if (kind == "snapshot") {
         bar.snapshot();
       } else if (kind == "start") {
-        std::cerr << "erg: " << ev.at("nx") << " x " << ev.at("ny") << " cells on the " << ev.at("backend")
-                  << " backend, steps " << ev.at("step") << " -> " << ev.at("steps") << ", output in " << out_dir
-                  << "\n";
+        std::cerr << "erg: " << ev.at("nx") << " x " << ev.at("ny") << " cells on the "
+                  << ev.at("backend") << " backend, steps " << ev.at("step") << " -> "
+                  << ev.at("steps") << ", output in " << out_dir << "\n";
       } else if (kind == "done") {
         bar.finish();
-        std::cerr << "erg: done at step " << ev.at("step") << "; exact sand total " << ev.at("sand_units_total")
-                  << " units on the ground + " << ev.at("airborne_units_total") << " airborne\n";
+        std::cerr << "erg: done at step " << ev.at("step") << "; exact sand total "
+                  << ev.at("sand_units_total") << " units on the ground + "
+                  << ev.at("airborne_units_total") << " airborne\n";
       } else if (kind == "failed" || kind == "stopped") {
         bar.finish();
       }
@@ -211,7 +219,9 @@ int cmd_run(const std::vector<std::string>& args) {
   bar.finish();
   if (WIFEXITED(status)) {
     const int code = WEXITSTATUS(status);
-    if (code == 0) std::cerr << "erg: snapshots in " << out_dir << "/snapshots, previews in " << out_dir << "/previews\n";
+    if (code == 0)
+      std::cerr << "erg: snapshots in " << out_dir << "/snapshots, previews in " << out_dir
+                << "/previews\n";
     return code;
   }
   if (WIFSIGNALED(status)) {
@@ -236,12 +246,13 @@ int cmd_check(const std::vector<std::string>& args) {
 }
 
 void usage() {
-  std::cerr << "erg " << ERG_VERSION << ": desert landscape simulation\n"
-            << "  erg run JOB.json --out DIR [--steps N] [--snapshot-every K] [--checkpoint-every C]\n"
-            << "                   [--threads T] [--backend auto|cpu|cuda]\n"
-            << "  erg run --resume DIR [--steps N] [...]\n"
-            << "  erg check JOB.json   validate a job; print it with all defaults\n"
-            << "  erg params           list every model parameter with its default and source\n";
+  std::cerr
+      << "erg " << ERG_VERSION << ": desert landscape simulation\n"
+      << "  erg run JOB.json --out DIR [--steps N] [--snapshot-every K] [--checkpoint-every C]\n"
+      << "                   [--threads T] [--backend auto|cpu|cuda]\n"
+      << "  erg run --resume DIR [--steps N] [...]\n"
+      << "  erg check JOB.json   validate a job; print it with all defaults\n"
+      << "  erg params           list every model parameter with its default and source\n";
 }
 
 }  // namespace

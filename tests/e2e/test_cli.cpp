@@ -84,7 +84,8 @@ const char* kSmallJob = R"({
 TEST(Cli, RunWritesTheDocumentedOutputs) {
   TempDir t;
   write(t / "job.json", kSmallJob);
-  const Result r = run(kErg + " run " + (t / "job.json") + " --out " + (t / "out") + " --threads 2");
+  const Result r =
+      run(kErg + " run " + (t / "job.json") + " --out " + (t / "out") + " --threads 2");
   ASSERT_EQ(r.code, 0) << r.output;
   // Progress bar (non-TTY form: a line per 10%) and the summary.
   EXPECT_NE(r.output.find("step 24/24"), std::string::npos) << r.output;
@@ -135,9 +136,11 @@ assert np.allclose(f['sand'][:], c['sand_units'][:] * unit, rtol=1e-6, atol=1e-6
 print('contract ok')
 )";
   write(t / "check.py", py);
-  const Result p = run("/usr/bin/python3 " + (t / "check.py") + " " + (t / "out/snapshots/step_00000024.h5") +
-                       " " + (t / "out/checkpoints/step_00000024.h5"));
-  if (p.output.find("No module named") != std::string::npos) GTEST_SKIP() << "h5py missing: " << p.output;
+  const Result p =
+      run("/usr/bin/python3 " + (t / "check.py") + " " + (t / "out/snapshots/step_00000024.h5") +
+          " " + (t / "out/checkpoints/step_00000024.h5"));
+  if (p.output.find("No module named") != std::string::npos)
+    GTEST_SKIP() << "h5py missing: " << p.output;
   EXPECT_EQ(p.code, 0) << p.output;
   EXPECT_NE(p.output.find("contract ok"), std::string::npos) << p.output;
 }
@@ -155,7 +158,8 @@ TEST(Cli, ResumeContinuesBitwiseIdentically) {
     job.replace(job.find("\"seed\""), 0, "\"transport\": \"" + transport + "\", ");
     write(t / "job.json", job);
     ASSERT_EQ(run(kErg + " run " + (t / "job.json") + " --out " + (t / "straight")).code, 0);
-    ASSERT_EQ(run(kErg + " run " + (t / "job.json") + " --out " + (t / "split") + " --steps 8").code, 0);
+    ASSERT_EQ(
+        run(kErg + " run " + (t / "job.json") + " --out " + (t / "split") + " --steps 8").code, 0);
     const Result r = run(kErg + " run --resume " + (t / "split") + " --steps 24 --threads 1");
     ASSERT_EQ(r.code, 0) << r.output;
     const auto a = erg::io::read_checkpoint(t / "straight/checkpoints/step_00000024.h5");
@@ -180,8 +184,8 @@ TEST(Cli, SigtermCheckpointsAndResumeFinishesTheSameRun) {
   ASSERT_EQ(run(kErg + " run " + (t / "job.json") + " --out " + (t / "straight")).code, 0);
   const pid_t pid = ::fork();
   if (pid == 0) {
-    ::execl(kWorker.c_str(), kWorker.c_str(), (t / "job.json").c_str(), "--out", (t / "stopped").c_str(), "--quiet",
-            static_cast<char*>(nullptr));
+    ::execl(kWorker.c_str(), kWorker.c_str(), (t / "job.json").c_str(), "--out",
+            (t / "stopped").c_str(), "--quiet", static_cast<char*>(nullptr));
     _exit(127);
   }
   // Let it start stepping, then ask it to stop.
@@ -201,7 +205,8 @@ TEST(Cli, SigtermCheckpointsAndResumeFinishesTheSameRun) {
 TEST(Cli, RefusesToOverwriteARunAndRejectsBadJobs) {
   TempDir t;
   write(t / "job.json", kSmallJob);
-  ASSERT_EQ(run(kErg + " run " + (t / "job.json") + " --out " + (t / "out") + " --steps 8").code, 0);
+  ASSERT_EQ(run(kErg + " run " + (t / "job.json") + " --out " + (t / "out") + " --steps 8").code,
+            0);
   const auto before = fs::last_write_time(t / "out/checkpoints/step_00000008.h5");
   Result r = run(kErg + " run " + (t / "job.json") + " --out " + (t / "out"));
   EXPECT_EQ(r.code, 2);
@@ -239,11 +244,13 @@ TEST(Cli, CheckAndParamsPrintTheSchema) {
 TEST(Cli, BackendFlag) {
   TempDir t;
   write(t / "job.json", kSmallJob);
-  Result r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "a") + " --steps 2 --backend auto --quiet");
+  Result r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "a") +
+                 " --steps 2 --backend auto --quiet");
   ASSERT_EQ(r.code, 0) << r.output;
   // Machines here have no GPU: auto falls back with a log line; cuda refuses.
   EXPECT_NE(r.output.find("using the CPU backend"), std::string::npos) << r.output;
-  r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "b") + " --steps 2 --backend cuda --quiet");
+  r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "b") +
+          " --steps 2 --backend cuda --quiet");
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("--backend cuda"), std::string::npos) << r.output;
   r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "c") + " --backend gpu");
@@ -254,8 +261,9 @@ TEST(Cli, BackendFlag) {
 TEST(Cli, BenchPrintsJsonWithStageTimes) {
   const Result r = run(kBench + " --scene A --size 512 --steps 2 --warmup 1 --threads 2 --json");
   ASSERT_EQ(r.code, 0) << r.output;
-  for (const char* key : {"\"ms_per_step\"", "\"stage_ms\"", "\"avalanching\"", "\"cell_updates_per_s\"",
-                          "\"threads\":2", "\"backend\":\"cpu\"", "\"roofline_ms_per_step\""})
+  for (const char* key :
+       {"\"ms_per_step\"", "\"stage_ms\"", "\"avalanching\"", "\"cell_updates_per_s\"",
+        "\"threads\":2", "\"backend\":\"cpu\"", "\"roofline_ms_per_step\""})
     EXPECT_NE(r.output.find(key), std::string::npos) << key << " in " << r.output;
 }
 
@@ -273,6 +281,27 @@ TEST_P(Example, Runs) {
   EXPECT_EQ(s.meta.step, 6);
 }
 INSTANTIATE_TEST_SUITE_P(Examples, Example,
-                         ::testing::Values("barchans", "transverse", "linear", "star", "nabkha", "yardangs"));
+                         ::testing::Values("barchans", "transverse", "linear", "star", "nabkha",
+                                           "yardangs"));
+
+}  // namespace
+
+namespace {
+
+// One source of truth: README's parameter table is `erg params` verbatim.
+TEST(Cli, ReadmeParameterTableMatchesTheSchema) {
+  std::ifstream in(std::string(ERG_SOURCE_DIR) + "/README.md");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string readme = ss.str();
+  const std::string begin = "<!-- erg params: begin -->\n", end = "<!-- erg params: end -->";
+  const size_t b = readme.find(begin), e = readme.find(end);
+  ASSERT_NE(b, std::string::npos);
+  ASSERT_NE(e, std::string::npos);
+  const Result r = run(kErg + " params");
+  ASSERT_EQ(r.code, 0);
+  EXPECT_EQ(readme.substr(b + begin.size(), e - b - begin.size()), r.output)
+      << "README's table is stale: replace it with the output of `erg params`";
+}
 
 }  // namespace

@@ -52,7 +52,8 @@ inline std::vector<double> sand_m(const TileState& s) {
   const TileGeom& g = s.geom;
   std::vector<double> h(static_cast<size_t>(g.nx) * g.ny);
   for (int y = 0; y < g.ny; ++y)
-    for (int x = 0; x < g.nx; ++x) h[static_cast<size_t>(y) * g.nx + x] = units_to_m_d(s.sand(x, y));
+    for (int x = 0; x < g.nx; ++x)
+      h[static_cast<size_t>(y) * g.nx + x] = units_to_m_d(s.sand(x, y));
   return h;
 }
 

@@ -21,8 +21,9 @@ double max_neighbour_slope(const std::vector<double>& h, int nx, int ny, double 
     for (int x = 0; x < nx; ++x)
       for (const auto& n : kNeighbours) {
         const int xj = (x + n.dx + nx) % nx, yj = (y + n.dy + ny) % ny;
-        const double d = (h[static_cast<size_t>(y) * nx + x] - h[static_cast<size_t>(yj) * nx + xj]) /
-                         (l * n.dist);
+        const double d =
+            (h[static_cast<size_t>(y) * nx + x] - h[static_cast<size_t>(yj) * nx + xj]) /
+            (l * n.dist);
         worst = std::max(worst, d);
       }
   return worst;
@@ -66,8 +67,8 @@ TEST(Behaviour, SandColumnRelaxesToARoundConeAtRepose) {
   RecordProperty("axis_width_m", std::to_string(axis_width));
   RecordProperty("diagonal_width_m", std::to_string(diag_width));
   EXPECT_GT(axis_width, 60) << "the column did not spread";
-  EXPECT_NEAR(diag_width / axis_width, 1.0, 0.10) << "footprint not round: axis " << axis_width
-                                                  << " m, diagonal " << diag_width << " m";
+  EXPECT_NEAR(diag_width / axis_width, 1.0, 0.10)
+      << "footprint not round: axis " << axis_width << " m, diagonal " << diag_width << " m";
 }
 
 // Centroid of the sand of a pile (cells above a threshold, so the thin sheet
@@ -91,7 +92,8 @@ double pile_speed(double height, double radius, int steps) {
   const std::string json = R"({
       "domain": {"nx": 512, "ny": 128, "cell_size_m": 1.0},
       "layers": {"sand": {"piles": [{"x_m": 100, "y_m": 64, "height": )" +
-                           std::to_string(height) + R"(, "radius_m": )" + std::to_string(radius) + R"(}]}},
+                           std::to_string(height) + R"(, "radius_m": )" + std::to_string(radius) +
+                           R"(}]}},
       "wind": {"constant": {"speed_mps": 5}},
       "transport": "STOCHASTIC",
       "run": {"steps": 200}})";

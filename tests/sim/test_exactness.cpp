@@ -29,7 +29,8 @@ std::string exact_job(const std::string& transport, bool abrasion) {
          (abrasion ? "0.05" : "0") + R"(, "avalanche_iterations": 20,
               "bedrock_avalanche_iterations": 1, "bedrock_to_sand": )" +
          (abrasion ? "true" : "false") + R"(},
-    "transport": ")" + transport + R"(",
+    "transport": ")" +
+         transport + R"(",
     "seed": 11,
     "run": {"steps": 1000}
   })";
@@ -53,13 +54,15 @@ Outcome run_checked(const std::string& json, int threads, bool abrasion, int ste
         EXPECT_EQ(to_decimal(t.all_sand() + t.bedrock), to_decimal(t0.all_sand() + t0.bedrock))
             << "sand + bedrock changed by step " << s;
       } else {
-        EXPECT_EQ(to_decimal(t.all_sand()), to_decimal(t0.all_sand())) << "sand changed by step " << s;
+        EXPECT_EQ(to_decimal(t.all_sand()), to_decimal(t0.all_sand()))
+            << "sand changed by step " << s;
         EXPECT_EQ(to_decimal(t.bedrock), to_decimal(t0.bedrock)) << "bedrock changed by step " << s;
       }
       const TileState st = sim.state();
       long negative = 0;
       for (int y = 0; y < st.geom.ny; ++y)
-        for (int x = 0; x < st.geom.nx; ++x) negative += (st.sand(x, y) < 0) + (st.airborne(x, y) < 0);
+        for (int x = 0; x < st.geom.nx; ++x)
+          negative += (st.sand(x, y) < 0) + (st.airborne(x, y) < 0);
       EXPECT_EQ(negative, 0) << "cells with negative sand or airborne sand at step " << s;
     }
   }
@@ -93,9 +96,11 @@ TEST_P(Exactness, ConservedNonNegativeAndThreadInvariant) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Modes, Exactness,
-                         ::testing::Combine(::testing::Values("EXPECTED", "STOCHASTIC"), ::testing::Bool()),
+                         ::testing::Combine(::testing::Values("EXPECTED", "STOCHASTIC"),
+                                            ::testing::Bool()),
                          [](const auto& info) {
-                           return std::get<0>(info.param) + (std::get<1>(info.param) ? "_abrasion" : "_no_abrasion");
+                           return std::get<0>(info.param) +
+                                  (std::get<1>(info.param) ? "_abrasion" : "_no_abrasion");
                          });
 
 // Timeline events change the totals by exactly what the ledger records.
@@ -139,7 +144,8 @@ TEST(Exactness, SparseAvalanchingEqualsVisitingEveryCell) {
     "model": {"avalanche_iterations": 40, "bedrock_avalanche_iterations": 3, "abrasion_k": 0.05,
               "bedrock_to_sand": true},
     "run": {"steps": 60}})";
-  for (const std::string& json : {column, exact_job("EXPECTED", true), exact_job("STOCHASTIC", false)}) {
+  for (const std::string& json :
+       {column, exact_job("EXPECTED", true), exact_job("STOCHASTIC", false)}) {
     RunOptions sparse = cpu_threads(2), everywhere = cpu_threads(2);
     everywhere.avalanche_everywhere = true;
     Simulation a(spec_from(json), ".", sparse), b(spec_from(json), ".", everywhere);

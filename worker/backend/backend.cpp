@@ -31,7 +31,8 @@ std::unique_ptr<Backend> make_backend(BackendKind kind, const Model& model, int 
     told = true;
 #else
     if (kind == BackendKind::kCuda)
-      throw std::runtime_error("--backend cuda: this build has no CUDA backend (nvcc was not found)");
+      throw std::runtime_error(
+          "--backend cuda: this build has no CUDA backend (nvcc was not found)");
     static bool told = false;
     if (!told) std::cerr << "erg: built without CUDA, using the CPU backend\n";
     told = true;

@@ -48,15 +48,24 @@ Args parse(int argc, char** argv) {
       if (i + 1 >= argc) throw std::invalid_argument(f + ": missing value");
       return argv[++i];
     };
-    if (f == "--scene") a.scene = next();
-    else if (f == "--size") a.size = std::stoi(next());
-    else if (f == "--steps") a.steps = std::stoi(next());
-    else if (f == "--warmup") a.warmup = std::stoi(next());
-    else if (f == "--threads") a.threads = std::stoi(next());
-    else if (f == "--iterations") a.iterations = std::stoi(next());
-    else if (f == "--backend") a.backend = next();
-    else if (f == "--json") a.json = true;
-    else throw std::invalid_argument(f + ": unknown flag");
+    if (f == "--scene")
+      a.scene = next();
+    else if (f == "--size")
+      a.size = std::stoi(next());
+    else if (f == "--steps")
+      a.steps = std::stoi(next());
+    else if (f == "--warmup")
+      a.warmup = std::stoi(next());
+    else if (f == "--threads")
+      a.threads = std::stoi(next());
+    else if (f == "--iterations")
+      a.iterations = std::stoi(next());
+    else if (f == "--backend")
+      a.backend = next();
+    else if (f == "--json")
+      a.json = true;
+    else
+      throw std::invalid_argument(f + ": unknown flag");
   }
   if (a.scene != "A" && a.scene != "B") throw std::invalid_argument("--scene must be A or B");
   if (a.size != 512 && a.size != 1024 && a.size != 2048 && a.size != 4096)
@@ -67,16 +76,18 @@ Args parse(int argc, char** argv) {
 
 erg::v1::JobSpec scene_spec(const Args& a) {
   const double l = 1024.0 / a.size;
-  const int iterations = a.iterations >= 0 ? a.iterations : (a.size == 512 ? 13 : a.size / 1024 * 25);
+  const int iterations =
+      a.iterations >= 0 ? a.iterations : (a.size == 512 ? 13 : a.size / 1024 * 25);
   std::ostringstream j;
   j << R"({"name":"bench-)" << a.scene << "-" << a.size << R"(",)"
     << R"("domain":{"nx":)" << a.size << R"(,"ny":)" << a.size << R"(,"cell_size_m":)" << l << "},"
     << R"("layers":{"sand":{"uniform":{"min":)" << (a.scene == "A" ? 0.5 : 3.0) << R"(,"max":)"
     << (a.scene == "A" ? 2.0 : 5.0) << "}}},"
-    << R"("wind":{"constant":{"speed_mps":)" << (a.scene == "A" ? 5 : 3) << R"(,"direction_deg":0}},)"
+    << R"("wind":{"constant":{"speed_mps":)" << (a.scene == "A" ? 5 : 3)
+    << R"(,"direction_deg":0}},)"
     // The hop must stay within 16 cells: at 0.25 m cells, 4 m.
-    << R"("model":{"avalanche_iterations":)" << iterations << R"(,"max_hop_m":)" << std::min(8.0, 16 * l)
-    << "},"
+    << R"("model":{"avalanche_iterations":)" << iterations << R"(,"max_hop_m":)"
+    << std::min(8.0, 16 * l) << "},"
     << R"("run":{"steps":)" << a.steps + a.warmup << "}}";
   erg::v1::JobSpec spec = erg::job::parse_json(j.str(), "bench scene");
   erg::job::apply_defaults(spec);
@@ -108,8 +119,8 @@ double triad_bandwidth(int threads) {
 // written once per pass (the floor a streaming implementation cannot beat).
 // Sizes: int64 state 8 B, float fields 4 B.
 struct ByteModel {
-  double per_cell_fixed = 0;       // everything but the avalanche iterations
-  double per_cell_iteration = 0;   // one avalanching iteration
+  double per_cell_fixed = 0;      // everything but the avalanche iterations
+  double per_cell_iteration = 0;  // one avalanching iteration
 };
 ByteModel byte_model() {
   ByteModel m;
@@ -136,15 +147,16 @@ int main(int argc, char** argv) {
   try {
     a = parse(argc, argv);
   } catch (const std::exception& e) {
-    std::cerr << "erg-bench: " << e.what() << "\n"
-              << "usage: erg-bench --scene A|B --size 512|1024|2048|4096 [--steps N] [--warmup W]\n"
-              << "                 [--threads T] [--backend auto|cpu|cuda] [--iterations I] [--json]\n";
+    std::cerr
+        << "erg-bench: " << e.what() << "\n"
+        << "usage: erg-bench --scene A|B --size 512|1024|2048|4096 [--steps N] [--warmup W]\n"
+        << "                 [--threads T] [--backend auto|cpu|cuda] [--iterations I] [--json]\n";
     return 2;
   }
   const erg::v1::JobSpec spec = scene_spec(a);
   erg::RunOptions opt;
   opt.threads = a.threads > 0 ? a.threads : omp_get_max_threads();
-  opt.backend = a.backend == "cpu" ? erg::BackendKind::kCpu
+  opt.backend = a.backend == "cpu"    ? erg::BackendKind::kCpu
                 : a.backend == "cuda" ? erg::BackendKind::kCuda
                                       : erg::BackendKind::kAuto;
   erg::Simulation sim(spec, ".", opt);
@@ -154,7 +166,8 @@ int main(int argc, char** argv) {
   for (int i = 0; i < a.warmup; ++i) sim.step();
   sim.backend().synchronize();
   const double warmup_ms =
-      a.warmup > 0 ? std::chrono::duration<double, std::milli>(Clock::now() - tw).count() / a.warmup : 0.0;
+      a.warmup > 0 ? std::chrono::duration<double, std::milli>(Clock::now() - tw).count() / a.warmup
+                   : 0.0;
   const erg::StageTimes before = sim.times();
   const auto t0 = Clock::now();
   for (int i = 0; i < a.steps; ++i) sim.step();
@@ -173,40 +186,47 @@ int main(int argc, char** argv) {
   // The iterations that ran: those that moved sand, plus the one that found
   // nothing to move (avalanching stops there; later ones would be identities).
   const double iterations_run = std::min<double>(iterations, iters_per_step + 1.0);
-  const double bytes_per_step = cells * (bm.per_cell_fixed + bm.per_cell_iteration * iterations_run);
+  const double bytes_per_step =
+      cells * (bm.per_cell_fixed + bm.per_cell_iteration * iterations_run);
   const double roofline_ms = bandwidth > 0 ? 1e3 * bytes_per_step / bandwidth : 0.0;
 
   std::ostringstream o;
   o.precision(4);
   o << std::fixed;
-  o << "{\"scene\":\"" << a.scene << "\",\"size\":" << a.size << ",\"cell_size_m\":" << 1024.0 / a.size
-    << ",\"steps\":" << a.steps << ",\"backend\":\"" << sim.backend().name() << "\",\"threads\":"
-    << (cpu ? opt.threads : 0) << ",\"avalanche_iterations\":" << iterations
-    << ",\"avalanche_iterations_moving_per_step\":" << iters_per_step << ",\"ms_per_step\":" << ms_per_step
-    << ",\"warmup_steps\":" << a.warmup << ",\"warmup_ms_per_step\":" << warmup_ms
-    << ",\"cell_updates_per_s\":" << std::scientific << cells * a.steps / (total_ms * 1e-3) << std::fixed
-    << ",\"stage_ms\":{";
+  o << "{\"scene\":\"" << a.scene << "\",\"size\":" << a.size
+    << ",\"cell_size_m\":" << 1024.0 / a.size << ",\"steps\":" << a.steps << ",\"backend\":\""
+    << sim.backend().name() << "\",\"threads\":" << (cpu ? opt.threads : 0)
+    << ",\"avalanche_iterations\":" << iterations
+    << ",\"avalanche_iterations_moving_per_step\":" << iters_per_step
+    << ",\"ms_per_step\":" << ms_per_step << ",\"warmup_steps\":" << a.warmup
+    << ",\"warmup_ms_per_step\":" << warmup_ms << ",\"cell_updates_per_s\":" << std::scientific
+    << cells * a.steps / (total_ms * 1e-3) << std::fixed << ",\"stage_ms\":{";
   for (int k = 0; k < erg::kStageCount; ++k)
     o << (k ? "," : "") << "\"" << erg::kStageNames[k]
       << "\":" << (after.ms[static_cast<size_t>(k)] - before.ms[static_cast<size_t>(k)]) / a.steps;
   o << "},\"bytes_per_step_model\":" << std::scientific << bytes_per_step << std::fixed
-    << ",\"memory_bandwidth_gbs\":" << bandwidth / 1e9 << ",\"roofline_ms_per_step\":" << roofline_ms
+    << ",\"memory_bandwidth_gbs\":" << bandwidth / 1e9
+    << ",\"roofline_ms_per_step\":" << roofline_ms
     << ",\"ratio_to_roofline\":" << (roofline_ms > 0 ? ms_per_step / roofline_ms : 0.0) << "}";
   if (a.json) {
     std::cout << o.str() << "\n";
   } else {
-    std::cout << "scene " << a.scene << " " << a.size << "x" << a.size << " (" << 1024.0 / a.size << " m cells), "
-              << sim.backend().name() << ", " << (cpu ? opt.threads : 0) << " threads\n"
+    std::cout << "scene " << a.scene << " " << a.size << "x" << a.size << " (" << 1024.0 / a.size
+              << " m cells), " << sim.backend().name() << ", " << (cpu ? opt.threads : 0)
+              << " threads\n"
               << "  " << ms_per_step << " ms/step, " << cells * a.steps / (total_ms * 1e-3) / 1e6
-              << " Mcell-updates/s; avalanching moved sand in " << iters_per_step << " of " << iterations
-              << " iterations per step\n"
-              << "  first " << a.warmup << " steps (relaxing the random sand): " << warmup_ms << " ms/step\n";
+              << " Mcell-updates/s; avalanching moved sand in " << iters_per_step << " of "
+              << iterations << " iterations per step\n"
+              << "  first " << a.warmup << " steps (relaxing the random sand): " << warmup_ms
+              << " ms/step\n";
     for (int k = 0; k < erg::kStageCount; ++k)
       std::cout << "  " << erg::kStageNames[k] << ": "
-                << (after.ms[static_cast<size_t>(k)] - before.ms[static_cast<size_t>(k)]) / a.steps << " ms\n";
+                << (after.ms[static_cast<size_t>(k)] - before.ms[static_cast<size_t>(k)]) / a.steps
+                << " ms\n";
     if (cpu)
-      std::cout << "  roofline: " << bytes_per_step / 1e6 << " MB/step at " << bandwidth / 1e9 << " GB/s = "
-                << roofline_ms << " ms/step; erg is " << ms_per_step / roofline_ms << "x from it\n";
+      std::cout << "  roofline: " << bytes_per_step / 1e6 << " MB/step at " << bandwidth / 1e9
+                << " GB/s = " << roofline_ms << " ms/step; erg is " << ms_per_step / roofline_ms
+                << "x from it\n";
   }
   return 0;
 }

@@ -16,12 +16,12 @@
 namespace erg {
 
 struct TileGeom {
-  int nx = 0, ny = 0;     // owned cells
-  int halo = 0;           // ghost width on every side
-  int pitch = 0;          // elements per stored row (>= nx + 2 halo, padded)
-  int x0 = 0, y0 = 0;     // global coordinates of owned cell (0, 0)
-  int gnx = 0, gny = 0;   // global domain size
-  float cell_m = 1.0f;    // cell edge length l
+  int nx = 0, ny = 0;    // owned cells
+  int halo = 0;          // ghost width on every side
+  int pitch = 0;         // elements per stored row (>= nx + 2 halo, padded)
+  int x0 = 0, y0 = 0;    // global coordinates of owned cell (0, 0)
+  int gnx = 0, gny = 0;  // global domain size
+  float cell_m = 1.0f;   // cell edge length l
 
   ERG_HD int rows() const { return ny + 2 * halo; }
   ERG_HD std::size_t size() const { return static_cast<std::size_t>(rows()) * pitch; }
@@ -42,7 +42,9 @@ struct TileGeom {
 
 // Padded row length: a multiple of 16 elements keeps rows 64-byte aligned for
 // every element type we store (int64, float).
-inline int padded_pitch(int nx, int halo) { return (nx + 2 * halo + 15) / 16 * 16; }
+inline int padded_pitch(int nx, int halo) {
+  return (nx + 2 * halo + 15) / 16 * 16;
+}
 
 inline TileGeom make_single_tile(int nx, int ny, int halo, float cell_m) {
   TileGeom g;
@@ -67,12 +69,12 @@ inline constexpr float kSqrt2 = 1.41421356237309515f;
 // this, not kNeighbours: nvcc cannot index a namespace-scope constexpr array
 // in device code, but a constexpr local of a host/device function is fine.
 ERG_HD constexpr Neighbour neighbour(int k) {
-  constexpr Neighbour table[8] = {{1, 0, 1.0f},    {1, 1, kSqrt2},   {0, 1, 1.0f},
-                                  {-1, 1, kSqrt2}, {-1, 0, 1.0f},    {-1, -1, kSqrt2},
-                                  {0, -1, 1.0f},   {1, -1, kSqrt2}};
+  constexpr Neighbour table[8] = {{1, 0, 1.0f},  {1, 1, kSqrt2},   {0, 1, 1.0f},  {-1, 1, kSqrt2},
+                                  {-1, 0, 1.0f}, {-1, -1, kSqrt2}, {0, -1, 1.0f}, {1, -1, kSqrt2}};
   return table[k];
 }
-inline constexpr Neighbour kNeighbours[8] = {neighbour(0), neighbour(1), neighbour(2), neighbour(3),
-                                             neighbour(4), neighbour(5), neighbour(6), neighbour(7)};
+inline constexpr Neighbour kNeighbours[8] = {neighbour(0), neighbour(1), neighbour(2),
+                                             neighbour(3), neighbour(4), neighbour(5),
+                                             neighbour(6), neighbour(7)};
 
 }  // namespace erg

@@ -26,10 +26,16 @@ namespace erg {
 // Branch-free min/max: GCC does not vectorise fminf/fmaxf without
 // -ffinite-math-only (NaN rules), so the per-cell math uses these.
 template <class T>
-ERG_HD T min_of(T a, T b) { return a < b ? a : b; }
+ERG_HD T min_of(T a, T b) {
+  return a < b ? a : b;
+}
 template <class T>
-ERG_HD T max_of(T a, T b) { return a > b ? a : b; }
+ERG_HD T max_of(T a, T b) {
+  return a > b ? a : b;
+}
 template <class T>
-ERG_HD T clamp_to(T x, T lo, T hi) { return min_of(max_of(x, lo), hi); }
+ERG_HD T clamp_to(T x, T lo, T hi) {
+  return min_of(max_of(x, lo), hi);
+}
 
 }  // namespace erg

@@ -52,7 +52,9 @@ enum class RandomStream : std::uint32_t {
 };
 
 // Uniform float in [0, 1) with 24 random bits.
-ERG_HD float u01(std::uint32_t x) { return static_cast<float>(x >> 8) * (1.0f / 16777216.0f); }
+ERG_HD float u01(std::uint32_t x) {
+  return static_cast<float>(x >> 8) * (1.0f / 16777216.0f);
+}
 // Uniform double in [0, 1) with 53 random bits.
 ERG_HD double u01d(std::uint32_t hi, std::uint32_t lo) {
   const std::uint64_t b = (static_cast<std::uint64_t>(hi) << 21) ^ (lo >> 11);

@@ -58,7 +58,8 @@ void add_uniform(const erg::v1::UniformRandom& u, std::uint64_t seed, const Tile
   for (int y = 0; y < t.ny; ++y)
     for (int x = 0; x < t.nx; ++x) {
       const Philox4 r = random4(seed, 0, t.global_index(x, y), RandomStream::kGenerator);
-      out[static_cast<size_t>(y) * t.nx + x] += u.min() + (u.max() - u.min()) * u01d(r.v[0], r.v[1]);
+      out[static_cast<size_t>(y) * t.nx + x] +=
+          u.min() + (u.max() - u.min()) * u01d(r.v[0], r.v[1]);
     }
 }
 
@@ -177,11 +178,13 @@ std::vector<double> generate_layer(const erg::v1::Layer& layer, LayerKind kind,
                                        static_cast<std::uint64_t>(layer.fbm().seed_offset())),
             d, tile, out);
   if (layer.has_uniform())
-    add_uniform(layer.uniform(), spec.seed() ^ salt ^ static_cast<std::uint64_t>(layer.uniform().seed_offset()),
+    add_uniform(layer.uniform(),
+                spec.seed() ^ salt ^ static_cast<std::uint64_t>(layer.uniform().seed_offset()),
                 tile, out);
   if (layer.has_patches())
     add_patches(layer.patches(),
-                spec.seed() ^ salt ^ static_cast<std::uint64_t>(layer.patches().seed_offset()), d, tile, out);
+                spec.seed() ^ salt ^ static_cast<std::uint64_t>(layer.patches().seed_offset()), d,
+                tile, out);
   if (layer.piles_size() > 0) add_piles(layer, d, tile, out);
   if (layer.has_map()) add_map(layer.map(), spec, tile, base_dir, out);
   return out;

@@ -10,7 +10,8 @@ namespace erg::init {
 
 inline std::uint32_t hash3(std::uint32_t a, std::uint32_t b, std::uint32_t c) {
   // Murmur-style finaliser over three words.
-  std::uint32_t h = a * 0x9E3779B1u ^ (b + 0x7F4A7C15u) * 0x85EBCA77u ^ (c + 0x165667B1u) * 0xC2B2AE3Du;
+  std::uint32_t h =
+      a * 0x9E3779B1u ^ (b + 0x7F4A7C15u) * 0x85EBCA77u ^ (c + 0x165667B1u) * 0xC2B2AE3Du;
   h ^= h >> 16;
   h *= 0x85EBCA6Bu;
   h ^= h >> 13;
@@ -32,7 +33,8 @@ inline double periodic_gradient_noise(double u, double v, int px, int py, std::u
   };
   auto fade = [](double t) { return t * t * t * (t * (t * 6 - 15) + 10); };
   const double n00 = grad_dot(iu, iv, tu, tv), n10 = grad_dot(iu + 1, iv, tu - 1, tv);
-  const double n01 = grad_dot(iu, iv + 1, tu, tv - 1), n11 = grad_dot(iu + 1, iv + 1, tu - 1, tv - 1);
+  const double n01 = grad_dot(iu, iv + 1, tu, tv - 1),
+               n11 = grad_dot(iu + 1, iv + 1, tu - 1, tv - 1);
   const double a = fade(tu), b = fade(tv);
   const double nx0 = n00 + a * (n10 - n00), nx1 = n01 + a * (n11 - n01);
   // Gradient noise with unit gradients peaks near +-0.71: scale to about +-1.

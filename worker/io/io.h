@@ -25,14 +25,14 @@ struct SnapshotMeta {
   double time_days = 0;
   double cell_size_m = 1;
   int nx = 0, ny = 0;
-  std::string job_spec_json;      // the full, defaults-filled job spec
+  std::string job_spec_json;  // the full, defaults-filled job spec
   std::string erg_version;
-  double unit_m = 0;              // height of one integer unit, metres
-  std::string sand_units_total;   // exact totals as decimal strings
+  double unit_m = 0;             // height of one integer unit, metres
+  std::string sand_units_total;  // exact totals as decimal strings
   std::string bedrock_units_total;
   std::string airborne_units_total;
   std::uint64_t seed = 0;
-  std::string backend;            // "cpu" or "cuda"
+  std::string backend;  // "cpu" or "cuda"
 };
 
 struct SnapshotFields {

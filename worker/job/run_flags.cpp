@@ -14,8 +14,8 @@ long long parse_count(const std::string& flag, const std::string& v, long long l
     used = 0;
   }
   if (used != v.size() || v.empty() || x < lo || x > hi)
-    throw std::invalid_argument(flag + " " + v + ": expected an integer in [" + std::to_string(lo) + ", " +
-                                std::to_string(hi) + "]");
+    throw std::invalid_argument(flag + " " + v + ": expected an integer in [" + std::to_string(lo) +
+                                ", " + std::to_string(hi) + "]");
   return x;
 }
 }  // namespace
@@ -28,14 +28,22 @@ RunFlags parse_run_flags(const std::vector<std::string>& args) {
       if (i + 1 >= args.size()) throw std::invalid_argument(a + ": missing value");
       return args[++i];
     };
-    if (a == "--out") f.out_dir = value();
-    else if (a == "--resume") f.resume_dir = value();
-    else if (a == "--steps") f.overrides.steps = parse_count(a, value(), 0, 1000000000);
-    else if (a == "--snapshot-every") f.overrides.snapshot_every = parse_count(a, value(), 0, 1000000000);
-    else if (a == "--checkpoint-every") f.overrides.checkpoint_every = parse_count(a, value(), 0, 1000000000);
-    else if (a == "--threads") f.threads = static_cast<int>(parse_count(a, value(), 1, 4096));
-    else if (a == "--progress-fd") f.progress_fd = static_cast<int>(parse_count(a, value(), 0, 65535));
-    else if (a == "--quiet") f.quiet = true;
+    if (a == "--out")
+      f.out_dir = value();
+    else if (a == "--resume")
+      f.resume_dir = value();
+    else if (a == "--steps")
+      f.overrides.steps = parse_count(a, value(), 0, 1000000000);
+    else if (a == "--snapshot-every")
+      f.overrides.snapshot_every = parse_count(a, value(), 0, 1000000000);
+    else if (a == "--checkpoint-every")
+      f.overrides.checkpoint_every = parse_count(a, value(), 0, 1000000000);
+    else if (a == "--threads")
+      f.threads = static_cast<int>(parse_count(a, value(), 1, 4096));
+    else if (a == "--progress-fd")
+      f.progress_fd = static_cast<int>(parse_count(a, value(), 0, 65535));
+    else if (a == "--quiet")
+      f.quiet = true;
     else if (a == "--backend") {
       f.backend = value();
       if (f.backend != "auto" && f.backend != "cpu" && f.backend != "cuda")
@@ -50,12 +58,15 @@ RunFlags parse_run_flags(const std::vector<std::string>& args) {
   }
   if (!f.resume_dir.empty()) {
     if (!f.job_path.empty())
-      throw std::invalid_argument("--resume DIR continues the run in DIR with its own job; give no job file");
+      throw std::invalid_argument(
+          "--resume DIR continues the run in DIR with its own job; give no job file");
     if (!f.out_dir.empty() && f.out_dir != f.resume_dir)
-      throw std::invalid_argument("--resume DIR writes into DIR; --out must be omitted or the same");
+      throw std::invalid_argument(
+          "--resume DIR writes into DIR; --out must be omitted or the same");
     f.out_dir = f.resume_dir;
   } else {
-    if (f.job_path.empty()) throw std::invalid_argument("missing the job file (JOB.json)\n" + run_flags_usage());
+    if (f.job_path.empty())
+      throw std::invalid_argument("missing the job file (JOB.json)\n" + run_flags_usage());
     if (f.out_dir.empty()) throw std::invalid_argument("missing --out DIR\n" + run_flags_usage());
   }
   return f;

@@ -11,14 +11,14 @@
 namespace erg::job {
 
 struct RunFlags {
-  std::string job_path;     // positional
-  std::string out_dir;      // --out DIR
-  std::string resume_dir;   // --resume DIR
+  std::string job_path;    // positional
+  std::string out_dir;     // --out DIR
+  std::string resume_dir;  // --resume DIR
   Overrides overrides;
-  int threads = 0;          // --threads T; unset (0): all hardware threads
+  int threads = 0;               // --threads T; unset (0): all hardware threads
   std::string backend = "auto";  // --backend auto|cpu|cuda
-  int progress_fd = -1;     // --progress-fd FD (erg-worker only)
-  bool quiet = false;       // --quiet
+  int progress_fd = -1;          // --progress-fd FD (erg-worker only)
+  bool quiet = false;            // --quiet
 };
 
 // Parses args (without the program name); throws std::invalid_argument with

@@ -58,27 +58,49 @@ bool is_numeric(const pb::FieldDescriptor* f) {
 double get_number(const pb::Message& m, const pb::FieldDescriptor* f) {
   const pb::Reflection* r = m.GetReflection();
   switch (f->cpp_type()) {
-    case pb::FieldDescriptor::CPPTYPE_DOUBLE: return r->GetDouble(m, f);
-    case pb::FieldDescriptor::CPPTYPE_FLOAT: return r->GetFloat(m, f);
-    case pb::FieldDescriptor::CPPTYPE_INT32: return r->GetInt32(m, f);
-    case pb::FieldDescriptor::CPPTYPE_INT64: return static_cast<double>(r->GetInt64(m, f));
-    case pb::FieldDescriptor::CPPTYPE_UINT32: return r->GetUInt32(m, f);
-    case pb::FieldDescriptor::CPPTYPE_UINT64: return static_cast<double>(r->GetUInt64(m, f));
-    default: return 0;
+    case pb::FieldDescriptor::CPPTYPE_DOUBLE:
+      return r->GetDouble(m, f);
+    case pb::FieldDescriptor::CPPTYPE_FLOAT:
+      return r->GetFloat(m, f);
+    case pb::FieldDescriptor::CPPTYPE_INT32:
+      return r->GetInt32(m, f);
+    case pb::FieldDescriptor::CPPTYPE_INT64:
+      return static_cast<double>(r->GetInt64(m, f));
+    case pb::FieldDescriptor::CPPTYPE_UINT32:
+      return r->GetUInt32(m, f);
+    case pb::FieldDescriptor::CPPTYPE_UINT64:
+      return static_cast<double>(r->GetUInt64(m, f));
+    default:
+      return 0;
   }
 }
 
 void set_default(pb::Message& m, const pb::FieldDescriptor* f, double v) {
   const pb::Reflection* r = m.GetReflection();
   switch (f->cpp_type()) {
-    case pb::FieldDescriptor::CPPTYPE_DOUBLE: r->SetDouble(&m, f, v); break;
-    case pb::FieldDescriptor::CPPTYPE_FLOAT: r->SetFloat(&m, f, static_cast<float>(v)); break;
-    case pb::FieldDescriptor::CPPTYPE_INT32: r->SetInt32(&m, f, static_cast<int32_t>(v)); break;
-    case pb::FieldDescriptor::CPPTYPE_INT64: r->SetInt64(&m, f, static_cast<int64_t>(v)); break;
-    case pb::FieldDescriptor::CPPTYPE_UINT32: r->SetUInt32(&m, f, static_cast<uint32_t>(v)); break;
-    case pb::FieldDescriptor::CPPTYPE_UINT64: r->SetUInt64(&m, f, static_cast<uint64_t>(v)); break;
-    case pb::FieldDescriptor::CPPTYPE_BOOL: r->SetBool(&m, f, v != 0); break;
-    default: break;
+    case pb::FieldDescriptor::CPPTYPE_DOUBLE:
+      r->SetDouble(&m, f, v);
+      break;
+    case pb::FieldDescriptor::CPPTYPE_FLOAT:
+      r->SetFloat(&m, f, static_cast<float>(v));
+      break;
+    case pb::FieldDescriptor::CPPTYPE_INT32:
+      r->SetInt32(&m, f, static_cast<int32_t>(v));
+      break;
+    case pb::FieldDescriptor::CPPTYPE_INT64:
+      r->SetInt64(&m, f, static_cast<int64_t>(v));
+      break;
+    case pb::FieldDescriptor::CPPTYPE_UINT32:
+      r->SetUInt32(&m, f, static_cast<uint32_t>(v));
+      break;
+    case pb::FieldDescriptor::CPPTYPE_UINT64:
+      r->SetUInt64(&m, f, static_cast<uint64_t>(v));
+      break;
+    case pb::FieldDescriptor::CPPTYPE_BOOL:
+      r->SetBool(&m, f, v != 0);
+      break;
+    default:
+      break;
   }
 }
 
@@ -89,7 +111,8 @@ void defaults_rec(pb::Message& m) {
     const pb::FieldDescriptor* f = d->field(i);
     if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE) {
       if (f->is_repeated()) {
-        for (int k = 0; k < r->FieldSize(m, f); ++k) defaults_rec(*r->MutableRepeatedMessage(&m, f, k));
+        for (int k = 0; k < r->FieldSize(m, f); ++k)
+          defaults_rec(*r->MutableRepeatedMessage(&m, f, k));
       } else if (r->HasField(m, f)) {
         // Only messages the user wrote: the presence of a layer source or a
         // wind regime is meaningful and must not be invented here.
@@ -106,11 +129,15 @@ void defaults_rec(pb::Message& m) {
 std::string range_text(const erg::v1::FieldSpec& s) {
   // Built by appending: GCC 12 warns falsely (-Wrestrict) on "(" + string.
   std::string t;
-  if (s.has_min()) t.append(s.min_exclusive() ? "(" : "[").append(num(s.min()));
-  else t.append("(-inf");
+  if (s.has_min())
+    t.append(s.min_exclusive() ? "(" : "[").append(num(s.min()));
+  else
+    t.append("(-inf");
   t.append(", ");
-  if (s.has_max()) t.append(num(s.max())).append(s.max_exclusive() ? ")" : "]");
-  else t.append("inf)");
+  if (s.has_max())
+    t.append(num(s.max())).append(s.max_exclusive() ? ")" : "]");
+  else
+    t.append("inf)");
   if (!s.unit().empty()) t += " " + s.unit();
   return t;
 }
@@ -140,7 +167,8 @@ void validate_rec(const pb::Message& m, const std::string& path, std::vector<std
       continue;
     }
     const double v = get_number(m, f);
-    const bool bad = !std::isfinite(v) || (s.has_min() && (s.min_exclusive() ? v <= s.min() : v < s.min())) ||
+    const bool bad = !std::isfinite(v) ||
+                     (s.has_min() && (s.min_exclusive() ? v <= s.min() : v < s.min())) ||
                      (s.has_max() && (s.max_exclusive() ? v >= s.max() : v > s.max()));
     if (bad) out.push_back(name + " = " + num(v) + " is out of range; allowed " + range_text(s));
   }
@@ -148,7 +176,8 @@ void validate_rec(const pb::Message& m, const std::string& path, std::vector<std
 
 // ---- checks that span several fields ---------------------------------------
 
-void check_wind(const erg::v1::WindRegime& w, const std::string& path, std::vector<std::string>& out) {
+void check_wind(const erg::v1::WindRegime& w, const std::string& path,
+                std::vector<std::string>& out) {
   using R = erg::v1::WindRegime;
   switch (w.regime_case()) {
     case R::REGIME_NOT_SET:
@@ -170,13 +199,14 @@ void check_wind(const erg::v1::WindRegime& w, const std::string& path, std::vect
     case R::kSeries: {
       const auto& s = w.series();
       if (s.keyframes_size() == 0) {
-        out.push_back(path + ".series.keyframes is empty; a wind series needs at least one keyframe");
+        out.push_back(path +
+                      ".series.keyframes is empty; a wind series needs at least one keyframe");
         break;
       }
       for (int k = 1; k < s.keyframes_size(); ++k)
         if (s.keyframes(k).step() <= s.keyframes(k - 1).step())
-          out.push_back(path + ".series.keyframes[" + std::to_string(k) + "].step = " +
-                        std::to_string(s.keyframes(k).step()) +
+          out.push_back(path + ".series.keyframes[" + std::to_string(k) +
+                        "].step = " + std::to_string(s.keyframes(k).step()) +
                         " must be greater than the previous keyframe's step " +
                         std::to_string(s.keyframes(k - 1).step()));
       if (s.period_steps() > 0 && s.keyframes(s.keyframes_size() - 1).step() >= s.period_steps())
@@ -193,8 +223,8 @@ void check_wind(const erg::v1::WindRegime& w, const std::string& path, std::vect
 void check_layer(const erg::v1::Layer& layer, const std::string& path, const JobSpec& spec,
                  const std::string& base_dir, std::vector<std::string>& out) {
   if (layer.has_uniform() && layer.uniform().min() > layer.uniform().max())
-    out.push_back(path + ".uniform.min = " + num(layer.uniform().min()) + " exceeds max = " +
-                  num(layer.uniform().max()) + "; allowed min <= max");
+    out.push_back(path + ".uniform.min = " + num(layer.uniform().min()) +
+                  " exceeds max = " + num(layer.uniform().max()) + "; allowed min <= max");
   if (!layer.has_map()) return;
   const auto& map = layer.map();
   const std::string mp = path + ".map";
@@ -211,8 +241,10 @@ void check_layer(const erg::v1::Layer& layer, const std::string& path, const Job
   if (format == erg::v1::MapFile::FORMAT_UNSPECIFIED) {
     std::string ext = fs::path(file).extension().string();
     for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    if (ext == ".h5" || ext == ".hdf5" || ext == ".he5") format = erg::v1::MapFile::HDF5;
-    else if (ext == ".png") format = erg::v1::MapFile::PNG16;
+    if (ext == ".h5" || ext == ".hdf5" || ext == ".he5")
+      format = erg::v1::MapFile::HDF5;
+    else if (ext == ".png")
+      format = erg::v1::MapFile::PNG16;
     else {
       out.push_back(mp + ".format is unset and the extension of \"" + map.path() +
                     "\" is not .h5/.hdf5/.png; set format to HDF5 or PNG16");
@@ -226,8 +258,8 @@ void check_layer(const erg::v1::Layer& layer, const std::string& path, const Job
     if (m.nx != spec.domain().nx() || m.ny != spec.domain().ny())
       out.push_back(mp + ".path = \"" + map.path() + "\" is " + std::to_string(m.nx) + " x " +
                     std::to_string(m.ny) + " cells; the domain is " +
-                    std::to_string(spec.domain().nx()) + " x " + std::to_string(spec.domain().ny()) +
-                    " (nx x ny)");
+                    std::to_string(spec.domain().nx()) + " x " +
+                    std::to_string(spec.domain().ny()) + " (nx x ny)");
     for (double v : m.values)
       if (!std::isfinite(v)) {
         out.push_back(mp + ".path = \"" + map.path() + "\" contains a non-finite value");
@@ -276,15 +308,18 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
   const auto& m = spec.model();
   const double l = d.cell_size_m();
 
-  if (!spec.has_wind()) out.push_back("wind is required: the high-altitude wind regime");
-  else check_wind(spec.wind(), "wind", out);
+  if (!spec.has_wind())
+    out.push_back("wind is required: the high-altitude wind regime");
+  else
+    check_wind(spec.wind(), "wind", out);
 
   // The hop is bounded by the saltation halo (DESIGN.md section 4).
   constexpr double kMaxHopCells = 16;
   if (m.max_hop_m() > kMaxHopCells * l)
     out.push_back("model.max_hop_m = " + num(m.max_hop_m()) + " m is " + num(m.max_hop_m() / l) +
                   " cells at domain.cell_size_m = " + num(l) + " m; a hop may span at most " +
-                  num(kMaxHopCells) + " cells, so allowed max_hop_m <= " + num(kMaxHopCells * l) + " m");
+                  num(kMaxHopCells) + " cells, so allowed max_hop_m <= " + num(kMaxHopCells * l) +
+                  " m");
   constexpr double kMaxShadowCells = 128;
   if (m.shadow_radius_m() > kMaxShadowCells * l)
     out.push_back("model.shadow_radius_m = " + num(m.shadow_radius_m()) + " m is " +
@@ -317,8 +352,9 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
         const bool rect = v.has_width_m() || v.has_height_m();
         const bool disk = v.has_radius_m();
         if (rect == disk)
-          out.push_back(p + ".vegetation must give either width_m and height_m (a rectangle) or "
-                            "radius_m (a disk)");
+          out.push_back(p +
+                        ".vegetation must give either width_m and height_m (a rectangle) or "
+                        "radius_m (a disk)");
         else if (rect && !(v.has_width_m() && v.has_height_m()))
           out.push_back(p + ".vegetation rectangle needs both width_m and height_m");
         break;
@@ -328,8 +364,8 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
         const auto& b = e.action_case() == erg::v1::Event::kSand ? e.sand() : e.bedrock();
         if (b.falloff_m() > b.radius_m())
           out.push_back(p + (e.action_case() == erg::v1::Event::kSand ? ".sand" : ".bedrock") +
-                        ".falloff_m = " + num(b.falloff_m()) + " exceeds radius_m = " +
-                        num(b.radius_m()) + "; allowed [0, radius_m]");
+                        ".falloff_m = " + num(b.falloff_m()) +
+                        " exceeds radius_m = " + num(b.radius_m()) + "; allowed [0, radius_m]");
         break;
       }
     }
@@ -391,11 +427,14 @@ void table_rec(const pb::Descriptor* d, const std::string& path, std::string& ou
     }
     if (!f->options().HasExtension(erg::v1::spec)) continue;
     const auto& s = spec_of(f);
-    std::string def = s.has_default_value() ? num(s.default_value()) : (s.required() ? "required" : "-");
+    std::string def =
+        s.has_default_value() ? num(s.default_value()) : (s.required() ? "required" : "-");
     if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_BOOL && s.has_default_value())
       def = s.default_value() != 0 ? "true" : "false";
     std::string range = is_numeric(f) ? range_text(s) : "";
-    std::string note = s.source().empty() ? s.doc() : (s.doc().empty() ? s.source() : s.doc() + " (" + s.source() + ")");
+    std::string note = s.source().empty()
+                           ? s.doc()
+                           : (s.doc().empty() ? s.source() : s.doc() + " (" + s.source() + ")");
     out += "| `" + name + "` | " + def + " | " + range + " | " + note + " |\n";
   }
 }

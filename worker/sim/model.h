@@ -16,9 +16,9 @@ namespace erg {
 
 // The coarse grid of the wind-warping smoothing (stages/wind_warping.h).
 struct CoarseGrid {
-  int cx = 1, cy = 1;    // fine cells per coarse cell along x, y
-  int nx = 0, ny = 0;    // coarse cells
-  double lx_m = 0, ly_m = 0;  // domain extent
+  int cx = 1, cy = 1;          // fine cells per coarse cell along x, y
+  int nx = 0, ny = 0;          // coarse cells
+  double lx_m = 0, ly_m = 0;   // domain extent
   double sigma_m[2] = {0, 0};  // Gaussian sigma of the large and small scales
 };
 

@@ -19,7 +19,9 @@ namespace fs = std::filesystem;
 namespace {
 
 std::atomic<int> g_signal{0};
-extern "C" void on_signal(int sig) { g_signal.store(sig); }
+extern "C" void on_signal(int sig) {
+  g_signal.store(sig);
+}
 
 std::string json_escape(const std::string& s) {
   std::string o;
@@ -84,8 +86,8 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
     io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, o.bedrock.data(), o.sand.data(),
                           o.vegetation.data());
   }
-  progress.emit("{\"event\":\"snapshot\",\"step\":" + std::to_string(sim.step_index()) + ",\"path\":\"" +
-                json_escape(h5) + "\",\"preview\":\"" + json_escape(png) + "\"}");
+  progress.emit("{\"event\":\"snapshot\",\"step\":" + std::to_string(sim.step_index()) +
+                ",\"path\":\"" + json_escape(h5) + "\",\"preview\":\"" + json_escape(png) + "\"}");
 }
 
 void write_checkpoint(Simulation& sim, const std::string& dir) {
@@ -190,10 +192,10 @@ int run_job(const RunConfig& cfg) {
     fs::create_directories(fs::path(cfg.out_dir) / "snapshots");
     fs::create_directories(fs::path(cfg.out_dir) / "previews");
     fs::create_directories(fs::path(cfg.out_dir) / "checkpoints");
-    progress.emit("{\"event\":\"start\",\"step\":" + std::to_string(sim->step_index()) + ",\"steps\":" +
-                  std::to_string(steps) + ",\"backend\":\"" + sim->backend().name() + "\",\"nx\":" +
-                  std::to_string(sim->model().tile.gnx) + ",\"ny\":" + std::to_string(sim->model().tile.gny) +
-                  "}");
+    progress.emit("{\"event\":\"start\",\"step\":" + std::to_string(sim->step_index()) +
+                  ",\"steps\":" + std::to_string(steps) + ",\"backend\":\"" +
+                  sim->backend().name() + "\",\"nx\":" + std::to_string(sim->model().tile.gnx) +
+                  ",\"ny\":" + std::to_string(sim->model().tile.gny) + "}");
     if (!cfg.resume) {
       write_outputs(*sim, cfg.out_dir, previews, progress);
       if (run.checkpoint_every() > 0) write_checkpoint(*sim, cfg.out_dir);
@@ -217,20 +219,22 @@ int run_job(const RunConfig& cfg) {
       if (last || std::chrono::duration<double>(now - last_report).count() >= 0.25) {
         last_report = now;
         std::ostringstream o;
-        o << "{\"event\":\"progress\",\"step\":" << s << ",\"steps\":" << steps << ",\"steps_per_s\":" << rate
-          << ",\"eta_s\":" << eta << ",\"time_days\":" << sim->time_days() << "," << totals_json() << "}";
+        o << "{\"event\":\"progress\",\"step\":" << s << ",\"steps\":" << steps
+          << ",\"steps_per_s\":" << rate << ",\"eta_s\":" << eta
+          << ",\"time_days\":" << sim->time_days() << "," << totals_json() << "}";
         progress.emit(o.str());
       }
       if (!cfg.quiet && cfg.progress_fd < 0 &&
           (last || std::chrono::duration<double>(now - last_log).count() >= 5.0)) {
         last_log = now;
-        std::cerr << "erg: step " << s << "/" << steps << "  " << rate << " steps/s  ETA " << fmt_duration(eta)
-                  << "\n";
+        std::cerr << "erg: step " << s << "/" << steps << "  " << rate << " steps/s  ETA "
+                  << fmt_duration(eta) << "\n";
       }
       if (g_signal.load() != 0 && !last) {
         write_checkpoint(*sim, cfg.out_dir);
         const int sig = g_signal.load();
-        std::cerr << "erg: stopped by signal " << sig << " at step " << s << "; checkpoint written, resume with --resume\n";
+        std::cerr << "erg: stopped by signal " << sig << " at step " << s
+                  << "; checkpoint written, resume with --resume\n";
         progress.emit("{\"event\":\"stopped\",\"step\":" + std::to_string(s) + "}");
         return 128 + sig;
       }
@@ -238,15 +242,16 @@ int run_job(const RunConfig& cfg) {
     // Per-stage timing, for the curious and for erg-bench comparisons.
     const StageTimes& t = sim->times();
     std::ostringstream o;
-    o << "{\"event\":\"done\",\"step\":" << sim->step_index() << "," << totals_json() << ",\"stage_ms\":{";
+    o << "{\"event\":\"done\",\"step\":" << sim->step_index() << "," << totals_json()
+      << ",\"stage_ms\":{";
     for (int k = 0; k < kStageCount; ++k)
       o << (k ? "," : "") << "\"" << kStageNames[k] << "\":" << t.ms[static_cast<size_t>(k)];
     o << "}}";
     progress.emit(o.str());
   } catch (const std::exception& e) {
     std::cerr << "erg: run failed at step " << sim->step_index() << ": " << e.what() << "\n";
-    progress.emit("{\"event\":\"failed\",\"step\":" + std::to_string(sim->step_index()) + ",\"reason\":\"" +
-                  json_escape(e.what()) + "\"}");
+    progress.emit("{\"event\":\"failed\",\"step\":" + std::to_string(sim->step_index()) +
+                  ",\"reason\":\"" + json_escape(e.what()) + "\"}");
     return 1;
   }
   return 0;

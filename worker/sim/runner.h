@@ -17,7 +17,7 @@ namespace erg {
 struct RunConfig {
   std::string job_path;  // new run
   std::string out_dir;
-  bool resume = false;   // continue the run in out_dir from its latest checkpoint
+  bool resume = false;  // continue the run in out_dir from its latest checkpoint
   job::Overrides overrides;
   RunOptions options;
   int progress_fd = -1;  // JSON-lines progress events go here (erg's progress bar)

@@ -24,33 +24,44 @@ void fill_owned(Field<T>& f, const std::vector<double>& v, F convert) {
 }
 
 events::Brush brush_of(const erg::v1::Brush& b, const Model& m) {
-  return {b.x_m(), b.y_m(), b.radius_m(), b.falloff_m(), b.height(),
-          m.tile.gnx * static_cast<double>(m.tile.cell_m), m.tile.gny * static_cast<double>(m.tile.cell_m)};
+  return {b.x_m(),
+          b.y_m(),
+          b.radius_m(),
+          b.falloff_m(),
+          b.height(),
+          m.tile.gnx * static_cast<double>(m.tile.cell_m),
+          m.tile.gny * static_cast<double>(m.tile.cell_m)};
 }
 }  // namespace
 
-TileState initial_state(const erg::v1::JobSpec& spec, const Model& model, const std::string& base_dir) {
+TileState initial_state(const erg::v1::JobSpec& spec, const Model& model,
+                        const std::string& base_dir) {
   TileState s;
   s.allocate(model.tile);
   using init::LayerKind;
   const auto& L = spec.layers();
-  fill_owned(s.bedrock, init::generate_layer(L.bedrock(), LayerKind::kBedrock, spec, model.tile, base_dir),
+  fill_owned(s.bedrock,
+             init::generate_layer(L.bedrock(), LayerKind::kBedrock, spec, model.tile, base_dir),
              [](double m) { return m_to_units(m); });
   fill_owned(s.sand, init::generate_layer(L.sand(), LayerKind::kSand, spec, model.tile, base_dir),
              [](double m) { return m_to_units(std::max(0.0, m)); });
-  fill_owned(s.vegetation,
-             init::generate_layer(L.vegetation(), LayerKind::kVegetation, spec, model.tile, base_dir),
-             [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
-  fill_owned(s.resistance,
-             init::generate_layer(L.resistance(), LayerKind::kResistance, spec, model.tile, base_dir),
-             [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
+  fill_owned(
+      s.vegetation,
+      init::generate_layer(L.vegetation(), LayerKind::kVegetation, spec, model.tile, base_dir),
+      [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
+  fill_owned(
+      s.resistance,
+      init::generate_layer(L.resistance(), LayerKind::kResistance, spec, model.tile, base_dir),
+      [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
   return s;
 }
 
-Simulation::Simulation(const erg::v1::JobSpec& spec, const std::string& base_dir, const RunOptions& opt)
+Simulation::Simulation(const erg::v1::JobSpec& spec, const std::string& base_dir,
+                       const RunOptions& opt)
     : spec_(spec) {
   spec_json_ = job::to_json(spec_);
-  model_ = make_model(spec_, static_cast<int>(spec_.domain().nx()), static_cast<int>(spec_.domain().ny()), 0, 0);
+  model_ = make_model(spec_, static_cast<int>(spec_.domain().nx()),
+                      static_cast<int>(spec_.domain().ny()), 0, 0);
   init_backend(opt, initial_state(spec_, model_, base_dir));
 }
 
@@ -98,8 +109,14 @@ void Simulation::apply_events(std::int64_t step) {
         break;
       case erg::v1::Event::kVegetation: {
         const auto& v = e.vegetation();
-        events::Region r{v.x_m(), v.y_m(), v.width_m(), v.height_m(),
-                         v.has_radius_m() ? v.radius_m() : -1.0, static_cast<float>(v.density()), lx, ly};
+        events::Region r{v.x_m(),
+                         v.y_m(),
+                         v.width_m(),
+                         v.height_m(),
+                         v.has_radius_m() ? v.radius_m() : -1.0,
+                         static_cast<float>(v.density()),
+                         lx,
+                         ly};
         backend_->set_vegetation(r);
         break;
       }

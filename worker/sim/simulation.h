@@ -17,7 +17,7 @@ namespace erg {
 
 struct RunOptions {
   BackendKind backend = BackendKind::kAuto;
-  int threads = 0;  // 0: all hardware threads (OMP_NUM_THREADS)
+  int threads = 0;                    // 0: all hardware threads (OMP_NUM_THREADS)
   bool avalanche_everywhere = false;  // see Model (tests)
 };
 
@@ -29,7 +29,7 @@ inline constexpr const char* kStageNames[kStageCount] = {
 struct StageTimes {
   std::array<double, kStageCount> ms{};  // accumulated wall time per stage
   long long steps = 0;
-  long long avalanche_iterations = 0;    // iterations that moved sand
+  long long avalanche_iterations = 0;  // iterations that moved sand
 };
 
 class Simulation {
@@ -79,6 +79,7 @@ class Simulation {
 };
 
 // Generates the initial exact state of a tile from the spec.
-TileState initial_state(const erg::v1::JobSpec& spec, const Model& model, const std::string& base_dir);
+TileState initial_state(const erg::v1::JobSpec& spec, const Model& model,
+                        const std::string& base_dir);
 
 }  // namespace erg

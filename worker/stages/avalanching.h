@@ -29,14 +29,15 @@ ERG_HD float excess(float h_donor, float h_receiver, float tan_l_donor, float di
 }
 
 // The integer units a donor with fraction f sends for an excess b (metres).
-ERG_HD units_t transfer(float f, float b) { return floor_units(f * b * kUnitsPerMf); }
+ERG_HD units_t transfer(float f, float b) {
+  return floor_units(f * b * kUnitsPerMf);
+}
 
 // k_c schedule [N24 5]: damped every 10th iteration and the last five
 // (iterations numbered from 1).
 ERG_HD float kc_for(int iteration, int iterations, float kc, float kc_damped) {
   return (iteration % 10 == 0 || iteration > iterations - 5) ? kc_damped : kc;
 }
-
 
 // The excesses of eq. 9 over the 8 neighbours (kNeighbours order: straight,
 // diagonal, alternating), written out so that compilers vectorise the loop
@@ -45,8 +46,9 @@ struct Excess {
   float b[8];
 };
 ERG_HD Excess excesses(float h, const float hn[8], float tan_l) {
-  return {{excess(h, hn[0], tan_l, 1.0f), excess(h, hn[1], tan_l, kSqrt2), excess(h, hn[2], tan_l, 1.0f),
-           excess(h, hn[3], tan_l, kSqrt2), excess(h, hn[4], tan_l, 1.0f), excess(h, hn[5], tan_l, kSqrt2),
+  return {{excess(h, hn[0], tan_l, 1.0f), excess(h, hn[1], tan_l, kSqrt2),
+           excess(h, hn[2], tan_l, 1.0f), excess(h, hn[3], tan_l, kSqrt2),
+           excess(h, hn[4], tan_l, 1.0f), excess(h, hn[5], tan_l, kSqrt2),
            excess(h, hn[6], tan_l, 1.0f), excess(h, hn[7], tan_l, kSqrt2)}};
 }
 
@@ -66,7 +68,8 @@ struct Fraction {
 };
 ERG_HD Fraction fraction(float h, const float hn[8], float tan_l, units_t available, float kc) {
   const Excess e = excesses(h, hn, tan_l);
-  const float bsum = ((((((e.b[0] + e.b[1]) + e.b[2]) + e.b[3]) + e.b[4]) + e.b[5]) + e.b[6]) + e.b[7];
+  const float bsum =
+      ((((((e.b[0] + e.b[1]) + e.b[2]) + e.b[3]) + e.b[4]) + e.b[5]) + e.b[6]) + e.b[7];
   const float bmax = max_of(max_of(max_of(e.b[0], e.b[1]), max_of(e.b[2], e.b[3])),
                             max_of(max_of(e.b[4], e.b[5]), max_of(e.b[6], e.b[7])));
   const bool moves = bsum > 0.0f && available > 0;

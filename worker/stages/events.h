@@ -9,11 +9,11 @@
 namespace erg::events {
 
 struct Brush {
-  double x_m, y_m;     // centre
-  double radius_m;     // outer radius
-  double falloff_m;    // width of the smooth edge
-  double height_m;     // at the centre; negative removes
-  double lx_m, ly_m;   // domain extent (wrap)
+  double x_m, y_m;    // centre
+  double radius_m;    // outer radius
+  double falloff_m;   // width of the smooth edge
+  double height_m;    // at the centre; negative removes
+  double lx_m, ly_m;  // domain extent (wrap)
 };
 
 struct Region {

@@ -21,9 +21,9 @@
 namespace erg::saltation {
 
 struct Params {
-  float slab_units;            // eps_S in units
-  float hop_time_s;            // hop length = |w| hop_time_s ...
-  float max_hop_m;             // ... capped here
+  float slab_units;  // eps_S in units
+  float hop_time_s;  // hop length = |w| hop_time_s ...
+  float max_hop_m;   // ... capped here
   float cell_m;
   float deposit_on_sand;       // f_S(s > 0)
   float deposit_on_bedrock;    // f_S(0)
@@ -34,7 +34,8 @@ struct Params {
 
 // (1) Lift: eps_S (1 - sigma)(1 - v), at most the sand present [N24 eq. 5].
 // Still air lifts nothing (a hop of length 0 would only churn the cell).
-ERG_HD units_t lift_expected(units_t sand, float shadow, float v, float wind_speed, const Params& p) {
+ERG_HD units_t lift_expected(units_t sand, float shadow, float v, float wind_speed,
+                             const Params& p) {
   const units_t want = floor_units(p.slab_units * vegetation::lift_factor(shadow, v));
   return wind_speed > 0.0f ? min_of(want, sand) : 0;
 }
@@ -112,7 +113,8 @@ ERG_HD Impact impact(units_t landed, units_t sand, float shadow, float v, float 
   // float-to-integer conversion is not if-converted, and blocks vectorising.)
   const bool abrades = (p.abrasion_k > 0.0f) & (r.bounced > 0) & (sand < p.abrasion_threshold);
   const float eps =
-      abrades ? p.abrasion_k * (1.0f - resistance) * wind_speed * vegetation::abrasion_factor(v) : 0.0f;
+      abrades ? p.abrasion_k * (1.0f - resistance) * wind_speed * vegetation::abrasion_factor(v)
+              : 0.0f;
   r.abraded = floor_units(eps * static_cast<float>(r.bounced));
   r.reptation_m = units_to_m(landed) * vegetation::reptation_factor(v);
   return r;

@@ -9,7 +9,9 @@
 namespace erg::vegetation {
 
 // Plants shield sand from the wind: lift scales with (1 - v) [N24 eq. 5].
-ERG_HD float lift_factor(float shadow, float v) { return (1.0f - shadow) * (1.0f - v); }
+ERG_HD float lift_factor(float shadow, float v) {
+  return (1.0f - shadow) * (1.0f - v);
+}
 
 // Probability that a landing slab stays: beta = clamp(sigma + f_S + f_V(v)).
 // [P19] 5.1 writes f_V(v) = 1 - v, which would make beta >= 1 on bare ground
@@ -28,10 +30,14 @@ ERG_HD float deposition_probability(float shadow, float sand_fraction, float v, 
 }
 
 // Reptation is triggered by impacts on unvegetated sand: beta_R = 1 - v [P19 5.1].
-ERG_HD float reptation_factor(float v) { return 1.0f - v; }
+ERG_HD float reptation_factor(float v) {
+  return 1.0f - v;
+}
 
 // Abrasion is dampened by cover [P19 5.2].
-ERG_HD float abrasion_factor(float v) { return 1.0f - v; }
+ERG_HD float abrasion_factor(float v) {
+  return 1.0f - v;
+}
 
 // Roots hold slopes steeper: tan(repose) interpolates from bare to vegetated
 // [N24 3.8, Beakawi Al-Hashemi 2018].

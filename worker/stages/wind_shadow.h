@@ -27,8 +27,8 @@ ERG_HD float bilinear(const float* base, int pitch, float px, float py) {
 inline constexpr int kMaxShadowSteps = 128;  // the validator's limit (128 cells)
 
 struct Params {
-  int steps;           // N_s
-  float cell_m;        // l
+  int steps;     // N_s
+  float cell_m;  // l
   float tan_min, tan_max;
   // 1 / (j l) for j = 0..steps: the march multiplies instead of dividing
   // (10 divisions per cell were most of this stage's time on the CPU).
@@ -69,9 +69,11 @@ ERG_HD Upwind upwind(Vec2 w) {
 }
 
 // tan of the angle to the j-th sample upwind of local cell (x, y).
-ERG_HD float angle(const float* h_base, int pitch, int x, int y, Upwind u, int j, float h0, const Params& p) {
+ERG_HD float angle(const float* h_base, int pitch, int x, int y, Upwind u, int j, float h0,
+                   const Params& p) {
   const float fj = static_cast<float>(j);
-  const float hq = bilinear(h_base, pitch, static_cast<float>(x) + fj * u.ux, static_cast<float>(y) + fj * u.uy);
+  const float hq =
+      bilinear(h_base, pitch, static_cast<float>(x) + fj * u.ux, static_cast<float>(y) + fj * u.uy);
   return (hq - h0) * p.inv_distance[j];
 }
 

@@ -75,7 +75,9 @@ ERG_HD Axis coarse_axis(int g, int c, int n) {
 ERG_HD float lerp_rows(const float* coarse, int nx, Axis ay, int i) {
   return (1.0f - ay.t) * coarse[ay.i0 * nx + i] + ay.t * coarse[ay.i1 * nx + i];
 }
-ERG_HD float lerp_columns(float at_i0, float at_i1, Axis ax) { return (1.0f - ax.t) * at_i0 + ax.t * at_i1; }
+ERG_HD float lerp_columns(float at_i0, float at_i1, Axis ax) {
+  return (1.0f - ax.t) * at_i0 + ax.t * at_i1;
+}
 ERG_HD float sample_at(const float* coarse, int nx, Axis ax, Axis ay) {
   return lerp_columns(lerp_rows(coarse, nx, ay, ax.i0), lerp_rows(coarse, nx, ay, ax.i1), ax);
 }

@@ -24,7 +24,9 @@ double unwrap_near(double a, double b) {
 }
 }  // namespace
 
-Vec2 direction(double deg) { return polar(1.0, deg); }
+Vec2 direction(double deg) {
+  return polar(1.0, deg);
+}
 
 Vec2 regime_at(const erg::v1::WindRegime& regime, std::int64_t local_step, std::int64_t global_step,
                std::uint64_t seed) {
@@ -36,7 +38,8 @@ Vec2 regime_at(const erg::v1::WindRegime& regime, std::int64_t local_step, std::
       const auto& rose = regime.rose();
       // One draw per hold period, keyed by the global period index.
       const std::int64_t period = global_step / rose.hold_steps();
-      const Philox4 r = random4(seed, static_cast<std::uint64_t>(period), 0, RandomStream::kWindRose);
+      const Philox4 r =
+          random4(seed, static_cast<std::uint64_t>(period), 0, RandomStream::kWindRose);
       const double u = u01d(r.v[0], r.v[1]);
       double acc = 0;
       int pick = rose.entries_size() - 1;
@@ -66,7 +69,8 @@ Vec2 regime_at(const erg::v1::WindRegime& regime, std::int64_t local_step, std::
         const auto& a = s.keyframes(k - 1);
         const auto& b = s.keyframes(k);
         if (t <= b.step()) {
-          const double f = static_cast<double>(t - a.step()) / static_cast<double>(b.step() - a.step());
+          const double f =
+              static_cast<double>(t - a.step()) / static_cast<double>(b.step() - a.step());
           const double speed = a.speed_mps() + f * (b.speed_mps() - a.speed_mps());
           const double bd = unwrap_near(a.direction_deg(), b.direction_deg());
           return polar(speed, a.direction_deg() + f * (bd - a.direction_deg()));

@@ -13,13 +13,14 @@
 // result is exactly that of visiting every cell, at a fraction of the cost
 // once the terrain is mostly settled. Iterations stop once nothing moved and
 // nothing can move later.
+#include "stages/avalanching.h"
+
 #include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <vector>
 
 #include "backend/cpu/cpu_backend.h"
-#include "stages/avalanching.h"
 
 namespace erg::cpu {
 
@@ -31,22 +32,24 @@ constexpr units_t kUnlimited = std::numeric_limits<units_t>::max() / 4;
 struct Stencil {
   long o[8];  // storage offsets of the neighbours, kNeighbours order
   explicit Stencil(int pitch) {
-    for (int k = 0; k < 8; ++k) o[k] = static_cast<long>(kNeighbours[k].dy) * pitch + kNeighbours[k].dx;
+    for (int k = 0; k < 8; ++k)
+      o[k] = static_cast<long>(kNeighbours[k].dy) * pitch + kNeighbours[k].dx;
   }
 };
 
 // Pass 1 on cells [x0, x1) of a row. Returns whether any f > 0.
 // kBedrock: unlimited supply and one repose tangent for all cells.
 template <bool kBedrock>
-bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, const units_t* sand, float kc,
-                      const Stencil& st, int x0, int x1, float* __restrict frac) {
+bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, const units_t* sand,
+                      float kc, const Stencil& st, int x0, int x1, float* __restrict frac) {
   const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
   const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
   int checks = 0, positive = 0;
   for (int x = x0; x < x1; ++x) {
-    const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3], h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
-    const avalanching::Fraction fr = avalanching::fraction(h[x], hn, kBedrock ? tan_l_const : tan_l[x],
-                                                           kBedrock ? kUnlimited : sand[x], kc);
+    const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
+                         h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
+    const avalanching::Fraction fr = avalanching::fraction(
+        h[x], hn, kBedrock ? tan_l_const : tan_l[x], kBedrock ? kUnlimited : sand[x], kc);
     frac[x] = fr.f;
     checks += fr.check;
     positive += fr.f > 0.0f;
@@ -55,10 +58,12 @@ bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, con
     // Rare: shares that might exceed the sand present; the complete donor()
     // shrinks f until they fit.
     for (int x = x0; x < x1; ++x) {
-      const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3], h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
+      const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
+                           h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
       const float t = kBedrock ? tan_l_const : tan_l[x];
       const units_t avail = kBedrock ? kUnlimited : sand[x];
-      if (avalanching::fraction(h[x], hn, t, avail, kc).check) frac[x] = avalanching::donor(h[x], hn, t, avail, kc).f;
+      if (avalanching::fraction(h[x], hn, t, avail, kc).check)
+        frac[x] = avalanching::donor(h[x], hn, t, avail, kc).f;
     }
   }
   return positive > 0;
@@ -67,8 +72,9 @@ bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, con
 // Pass 2 on cells [x0, x1) of a row: net units each cell gains. Returns
 // whether any cell sent or received anything.
 template <bool kBedrock>
-bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, const float* frac, const Stencil& st,
-                      int x0, int x1, units_t* __restrict gain, units_t* __restrict loss) {
+bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, const float* frac,
+                      const Stencil& st, int x0, int x1, units_t* __restrict gain,
+                      units_t* __restrict loss) {
   const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
   const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
   int active = 0;
@@ -77,13 +83,15 @@ bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, con
     // The donor is the neighbour; it saw this cell in the opposite
     // direction, at the same distance.
     auto in = [=](long o, float dist) {
-      return avalanching::inflow(frac[x + o], h[x + o], hx, kBedrock ? tan_l_const : tan_l[x + o], dist);
+      return avalanching::inflow(frac[x + o], h[x + o], hx, kBedrock ? tan_l_const : tan_l[x + o],
+                                 dist);
     };
-    const units_t received = in(o0, 1.0f) + in(o1, kSqrt2) + in(o2, 1.0f) + in(o3, kSqrt2) + in(o4, 1.0f) +
-                             in(o5, kSqrt2) + in(o6, 1.0f) + in(o7, kSqrt2);
-    const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3], h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
-    const units_t sent =
-        avalanching::outflow(frac[x], avalanching::excesses(hx, hn, kBedrock ? tan_l_const : tan_l[x]));
+    const units_t received = in(o0, 1.0f) + in(o1, kSqrt2) + in(o2, 1.0f) + in(o3, kSqrt2) +
+                             in(o4, 1.0f) + in(o5, kSqrt2) + in(o6, 1.0f) + in(o7, kSqrt2);
+    const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
+                         h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
+    const units_t sent = avalanching::outflow(
+        frac[x], avalanching::excesses(hx, hn, kBedrock ? tan_l_const : tan_l[x]));
     gain[x - x0] = received;
     loss[x - x0] = sent;
     active += (received | sent) != 0;
@@ -93,7 +101,8 @@ bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, con
 
 // Marks, in `out`, the segments within `dy` rows and one segment of a marked
 // segment of `in` (periodic in both directions).
-void dilate(const std::vector<std::uint8_t>& in, std::vector<std::uint8_t>& out, int rows, int segs, int dy) {
+void dilate(const std::vector<std::uint8_t>& in, std::vector<std::uint8_t>& out, int rows, int segs,
+            int dy) {
   std::fill(out.begin(), out.end(), 0);
   for (int y = 0; y < rows; ++y)
     for (int s = 0; s < segs; ++s) {
@@ -143,10 +152,10 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
         const size_t k = static_cast<size_t>(y) * segs + s;
         if (!visit[k]) continue;
         const int x0 = s * kSegment, x1 = std::min(nx, x0 + kSegment);
-        positive[k] = bedrock ? fraction_segment<true>(h_a_.row(y), nullptr, tan_b, nullptr, kc, st, x0, x1,
-                                                       frac_.row(y))
-                              : fraction_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f, sand_.row(y), kc, st,
-                                                        x0, x1, frac_.row(y));
+        positive[k] = bedrock ? fraction_segment<true>(h_a_.row(y), nullptr, tan_b, nullptr, kc, st,
+                                                       x0, x1, frac_.row(y))
+                              : fraction_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f,
+                                                        sand_.row(y), kc, st, x0, x1, frac_.row(y));
         any_positive = any_positive || positive[k];
       }
     if (!any_positive) {
@@ -169,10 +178,10 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
         changed[k] = 0;
         if (!exchange[k]) continue;
         const int x0 = s * kSegment, x1 = std::min(nx, x0 + kSegment);
-        const bool active =
-            bedrock ? exchange_segment<true>(h_a_.row(y), nullptr, tan_b, frac_.row(y), st, x0, x1, gain, loss)
-                    : exchange_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f, frac_.row(y), st, x0, x1, gain,
-                                              loss);
+        const bool active = bedrock ? exchange_segment<true>(h_a_.row(y), nullptr, tan_b,
+                                                             frac_.row(y), st, x0, x1, gain, loss)
+                                    : exchange_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f,
+                                                              frac_.row(y), st, x0, x1, gain, loss);
         if (!active) continue;
         // Pass 2 reads only heights and fractions, so the layers can be
         // updated in place.
@@ -220,7 +229,8 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
     // Next pass 1: within two cells of a change, and wherever donors remain
     // (k_c may change their f).
     dilate(changed, visit, ny, segs, 2);
-    for (size_t k = 0; k < nseg; ++k) visit[k] |= positive[k] | static_cast<std::uint8_t>(m_.avalanche_everywhere);
+    for (size_t k = 0; k < nseg; ++k)
+      visit[k] |= positive[k] | static_cast<std::uint8_t>(m_.avalanche_everywhere);
   }
   return moved_iterations;
 }

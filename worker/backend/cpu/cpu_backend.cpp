@@ -54,7 +54,9 @@ template void fill_halo_periodic(Field<float>&, int);
 template void fold_halo_periodic(Field<units_t>&, int);
 
 CpuBackend::CpuBackend(const Model& model, int threads)
-    : m_(model), g_(model.tile), threads_(threads > 0 ? threads : omp_get_max_threads()),
+    : m_(model),
+      g_(model.tile),
+      threads_(threads > 0 ? threads : omp_get_max_threads()),
       smoother_(model.coarse) {
   bedrock_.reset(g_);
   sand_.reset(g_);
@@ -125,8 +127,12 @@ void CpuBackend::update_repose() {
 
 namespace {
 // Cell centre of local cell (x, y) in global metres.
-inline double centre_x(const TileGeom& g, int x) { return (g.x0 + x + 0.5) * g.cell_m; }
-inline double centre_y(const TileGeom& g, int y) { return (g.y0 + y + 0.5) * g.cell_m; }
+inline double centre_x(const TileGeom& g, int x) {
+  return (g.x0 + x + 0.5) * g.cell_m;
+}
+inline double centre_y(const TileGeom& g, int y) {
+  return (g.y0 + y + 0.5) * g.cell_m;
+}
 }  // namespace
 
 total_t CpuBackend::apply_sand_brush(const events::Brush& b) {

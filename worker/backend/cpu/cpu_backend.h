@@ -79,12 +79,12 @@ class CpuBackend final : public Backend {
   Field<float> vegetation_, resistance_;
   bool bedrock_changed_ = true;  // since bedrock avalanching last found it settled
   // derived each step
-  Field<float> height_m_;   // b + s in metres, halo filled for the shadow march
+  Field<float> height_m_;  // b + s in metres, halo filled for the shadow march
   Field<float> wind_x_, wind_y_, shadow_;
-  Field<units_t> landed_;   // saltation scatter target (halo for the hop reach)
-  Field<float> reptation_;  // s_r
+  Field<units_t> landed_;        // saltation scatter target (halo for the hop reach)
+  Field<float> reptation_;       // s_r
   Field<units_t> height_units_;  // b + s, for reptation
-  Field<float> tan_l_;      // tan(repose(v)) * l for sand
+  Field<float> tan_l_;           // tan(repose(v)) * l for sand
   // avalanching work buffers
   Field<units_t> sand_next_;
   Field<float> h_a_, h_b_, frac_;

@@ -1,7 +1,8 @@
 // Reptation on the CPU (stages/reptation.h): one gather pass, written out
 // over the 8 neighbours so that it vectorises.
-#include "backend/cpu/cpu_backend.h"
 #include "stages/reptation.h"
+
+#include "backend/cpu/cpu_backend.h"
 
 namespace erg::cpu {
 
@@ -9,8 +10,8 @@ namespace {
 
 // One row. A separate function with restrict-qualified outputs: inside an
 // OpenMP region GCC does not vectorise this loop.
-void reptation_row(const units_t* h, const units_t* s, const float* sr, units_t* __restrict next, int nx,
-                   long pitch, float l, float k_r) {
+void reptation_row(const units_t* h, const units_t* s, const float* sr, units_t* __restrict next,
+                   int nx, long pitch, float l, float k_r) {
   const float ld = l * kSqrt2;
   const long o0 = 1, o1 = pitch + 1, o2 = pitch, o3 = pitch - 1;  // kNeighbours order
   const long o4 = -1, o5 = -pitch - 1, o6 = -pitch, o7 = -pitch + 1;
@@ -20,8 +21,10 @@ void reptation_row(const units_t* h, const units_t* s, const float* sr, units_t*
     auto ex = [=](long o, float dist_m) {
       return reptation::exchange(hx, h[x + o], srx, sr[x + o], sx, s[x + o], dist_m, k_r);
     };
-    next[x] = sx + (((((((ex(o0, l) + ex(o1, ld)) + ex(o2, l)) + ex(o3, ld)) + ex(o4, l)) + ex(o5, ld)) +
-                     ex(o6, l)) + ex(o7, ld));
+    next[x] =
+        sx + (((((((ex(o0, l) + ex(o1, ld)) + ex(o2, l)) + ex(o3, ld)) + ex(o4, l)) + ex(o5, ld)) +
+               ex(o6, l)) +
+              ex(o7, ld));
   }
 }
 
@@ -42,8 +45,8 @@ void CpuBackend::reptation() {
   fill_halo_periodic(reptation_, w);
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y)
-    reptation_row(height_units_.row(y), sand_.row(y), reptation_.row(y), sand_next_.row(y), g_.nx, g_.pitch,
-                  g_.cell_m, m_.reptation_k);
+    reptation_row(height_units_.row(y), sand_.row(y), reptation_.row(y), sand_next_.row(y), g_.nx,
+                  g_.pitch, g_.cell_m, m_.reptation_k);
   sand_.swap(sand_next_);
 }
 

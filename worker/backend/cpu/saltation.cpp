@@ -1,11 +1,12 @@
 // Saltation on the CPU (stages/saltation.h): lift, scatter of airborne sand
 // one hop downwind, reverse halo accumulation, deposition/bounce/abrasion.
+#include "stages/saltation.h"
+
 #include <algorithm>
 #include <vector>
 
 #include "backend/cpu/cpu_backend.h"
 #include "core/philox.h"
-#include "stages/saltation.h"
 
 namespace erg::cpu {
 
@@ -13,14 +14,15 @@ namespace {
 
 // Row kernels live outside the OpenMP regions, with restrict-qualified
 // outputs, so that GCC vectorises them (it does not inside the regions).
-void lift_row(units_t* __restrict s, units_t* __restrict air, const float* sh, const float* v, const float* wx,
-              const float* wy, const TileGeom& g, int y, std::uint64_t seed, std::uint64_t step,
-              const saltation::Params& p) {
+void lift_row(units_t* __restrict s, units_t* __restrict air, const float* sh, const float* v,
+              const float* wx, const float* wy, const TileGeom& g, int y, std::uint64_t seed,
+              std::uint64_t step, const saltation::Params& p) {
   const int nx = g.nx;
   if (p.stochastic) {
     for (int x = 0; x < nx; ++x) {
       const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLift).v[0]);
-      const units_t q = saltation::lift_stochastic(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), u, p);
+      const units_t q =
+          saltation::lift_stochastic(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), u, p);
       s[x] -= q;
       air[x] += q;
     }
@@ -34,17 +36,19 @@ void lift_row(units_t* __restrict s, units_t* __restrict air, const float* sh, c
 }
 
 // Returns whether any bedrock was abraded.
-bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b, units_t* __restrict air,
-                const float* sh, const float* v, const float* r, const float* wx, const float* wy,
-                float* __restrict sr, const TileGeom& g, int y, std::uint64_t seed, std::uint64_t step,
-                const saltation::Params& p) {
+bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
+                units_t* __restrict air, const float* sh, const float* v, const float* r,
+                const float* wx, const float* wy, float* __restrict sr, const TileGeom& g, int y,
+                std::uint64_t seed, std::uint64_t step, const saltation::Params& p) {
   const int nx = g.nx;
   units_t abraded = 0;
   if (p.stochastic) {
     for (int x = 0; x < nx; ++x) {
       const float u =
-          in[x] > 0 ? u01(random4(seed, step, g.global_index(x, y), RandomStream::kDeposit).v[0]) : 0.0f;
-      const saltation::Impact im = saltation::impact(in[x], s[x], sh[x], v[x], r[x], length(Vec2{wx[x], wy[x]}), u, p);
+          in[x] > 0 ? u01(random4(seed, step, g.global_index(x, y), RandomStream::kDeposit).v[0])
+                    : 0.0f;
+      const saltation::Impact im =
+          saltation::impact(in[x], s[x], sh[x], v[x], r[x], length(Vec2{wx[x], wy[x]}), u, p);
       s[x] += im.deposited + im.abraded;
       b[x] -= im.abraded;
       air[x] = im.bounced;
@@ -68,9 +72,9 @@ bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
 // Expected transport: where each cell's airborne sand lands (storage index
 // of the lower-left receiving cell) and its exact four-way split. Empties
 // the airborne buffer (everything is in flight).
-void split_row(units_t* __restrict air, const float* __restrict wx, const float* __restrict wy, int nx, int y,
-               long origin, long pitch, const saltation::Params p, long* __restrict target,
-               units_t* __restrict parts) {
+void split_row(units_t* __restrict air, const float* __restrict wx, const float* __restrict wy,
+               int nx, int y, long origin, long pitch, const saltation::Params p,
+               long* __restrict target, units_t* __restrict parts) {
   // (Parameters by value: int64 stores could alias fields read through a
   // reference, which would block vectorisation.)
   for (int x = 0; x < nx; ++x) {
@@ -88,9 +92,9 @@ void split_row(units_t* __restrict air, const float* __restrict wx, const float*
 
 // Stochastic transport: each cell's airborne sand lands whole in one of the
 // four cells, drawn with the bilinear weights.
-void scatter_row_stochastic(units_t* air, const float* wx, const float* wy, const TileGeom& g, int y,
-                            std::uint64_t seed, std::uint64_t step, const saltation::Params& p,
-                            Field<units_t>& landed) {
+void scatter_row_stochastic(units_t* air, const float* wx, const float* wy, const TileGeom& g,
+                            int y, std::uint64_t seed, std::uint64_t step,
+                            const saltation::Params& p, Field<units_t>& landed) {
   for (int x = 0; x < g.nx; ++x) {
     const units_t a = air[x];
     if (a == 0) continue;
@@ -112,8 +116,8 @@ void CpuBackend::saltation(std::int64_t step) {
   // (1) Lift into the airborne buffer (which holds last step's bounces).
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y)
-    lift_row(sand_.row(y), airborne_.row(y), shadow_.row(y), vegetation_.row(y), wind_x_.row(y), wind_y_.row(y),
-             g_, y, seed, ustep, p);
+    lift_row(sand_.row(y), airborne_.row(y), shadow_.row(y), vegetation_.row(y), wind_x_.row(y),
+             wind_y_.row(y), g_, y, seed, ustep, p);
 
   // (2) Scatter one hop downwind into `landed_` (owned + ghosts). Rows are cut
   // into bands taller than twice the hop reach; even bands run in parallel,
@@ -131,12 +135,13 @@ void CpuBackend::saltation(std::int64_t step) {
       std::vector<units_t> parts(4 * static_cast<size_t>(g_.nx));
       for (int y = y_begin; y < y_end; ++y) {
         if (p.stochastic) {
-          scatter_row_stochastic(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_, y, seed, ustep, p, landed_);
+          scatter_row_stochastic(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_, y, seed,
+                                 ustep, p, landed_);
         } else {
           // Landing points and exact splits in a vectorised pass, then the
           // adds (which may collide) in a scalar one.
-          split_row(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_.nx, y, static_cast<long>(g_.at(0, 0)),
-                    g_.pitch, p, target.data(), parts.data());
+          split_row(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_.nx, y,
+                    static_cast<long>(g_.at(0, 0)), g_.pitch, p, target.data(), parts.data());
           units_t* base = landed_.data();
           const long pitch = g_.pitch;
           for (int x = 0; x < g_.nx; ++x) {
@@ -158,9 +163,9 @@ void CpuBackend::saltation(std::int64_t step) {
   bool abraded = false;
 #pragma omp parallel for num_threads(threads_) schedule(static) reduction(|| : abraded)
   for (int y = 0; y < g_.ny; ++y)
-    abraded = impact_row(landed_.row(y), sand_.row(y), bedrock_.row(y), airborne_.row(y), shadow_.row(y),
-                         vegetation_.row(y), resistance_.row(y), wind_x_.row(y), wind_y_.row(y),
-                         reptation_.row(y), g_, y, seed, ustep, p) ||
+    abraded = impact_row(landed_.row(y), sand_.row(y), bedrock_.row(y), airborne_.row(y),
+                         shadow_.row(y), vegetation_.row(y), resistance_.row(y), wind_x_.row(y),
+                         wind_y_.row(y), reptation_.row(y), g_, y, seed, ustep, p) ||
               abraded;
   if (abraded) bedrock_changed_ = true;
 }

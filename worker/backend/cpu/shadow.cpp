@@ -17,8 +17,8 @@ constexpr int kSegment = 64;
 // Marches cells x0..x1-1 of row y step by step: step j for every cell, then
 // step j + 1, so the inner loop vectorises (with gathers for the bilinear
 // samples); stops once every cell is fully shadowed.
-void march_segment(const float* base, int pitch, const float* wx, const float* wy, int x0, int x1, int y,
-                   const wind_shadow::Params& p, float* __restrict out) {
+void march_segment(const float* base, int pitch, const float* wx, const float* wy, int x0, int x1,
+                   int y, const wind_shadow::Params& p, float* __restrict out) {
   const int n = x1 - x0;
   float ux[kSegment], uy[kSegment], h0[kSegment], best[kSegment];
   bool calm[kSegment];
@@ -32,12 +32,14 @@ void march_segment(const float* base, int pitch, const float* wx, const float* w
   }
   for (int j = 1; j <= p.steps; ++j) {
     for (int i = 0; i < n; ++i)
-      best[i] = max_of(best[i], wind_shadow::angle(base, pitch, x0 + i, y, {ux[i], uy[i], false}, j, h0[i], p));
+      best[i] = max_of(
+          best[i], wind_shadow::angle(base, pitch, x0 + i, y, {ux[i], uy[i], false}, j, h0[i], p));
     float least = best[0];
     for (int i = 1; i < n; ++i) least = min_of(least, best[i]);
     if (least >= p.tan_max) break;  // every cell is at 1 already
   }
-  for (int i = 0; i < n; ++i) out[x0 + i] = (calm[i] || p.steps <= 0) ? 0.0f : wind_shadow::from_angle(best[i], p);
+  for (int i = 0; i < n; ++i)
+    out[x0 + i] = (calm[i] || p.steps <= 0) ? 0.0f : wind_shadow::from_angle(best[i], p);
 }
 
 }  // namespace
@@ -61,7 +63,8 @@ void CpuBackend::shadow() {
         for (int k = 1; k < B; ++k) m = std::max(m, r[bx * B + k]);
         out[bx] = std::max(out[bx], m);
       }
-      for (int px = (pitch / B) * B; px < pitch; ++px) out[pitch / B] = std::max(out[pitch / B], r[px]);
+      for (int px = (pitch / B) * B; px < pitch; ++px)
+        out[pitch / B] = std::max(out[pitch / B], r[px]);
     }
   }
   // A bound for each block of owned cells: the maximum over every block its
@@ -70,14 +73,16 @@ void CpuBackend::shadow() {
   const int reach = p.steps + 1;
   const int obx = (g_.nx + B - 1) / B, oby = (g_.ny + B - 1) / B;
   auto span = [&](int i, int n) {
-    return std::pair<int, int>{(i * B - reach + g_.halo) / B, (std::min((i + 1) * B, n) - 1 + reach + g_.halo) / B};
+    return std::pair<int, int>{(i * B - reach + g_.halo) / B,
+                               (std::min((i + 1) * B, n) - 1 + reach + g_.halo) / B};
   };
   std::vector<float> along_x(static_cast<size_t>(pby) * obx);
   for (int by = 0; by < pby; ++by)
     for (int I = 0; I < obx; ++I) {
       const auto [x0, x1] = span(I, g_.nx);
       float m = -3.0e38f;
-      for (int bx = x0; bx <= x1; ++bx) m = std::max(m, block_max_[static_cast<size_t>(by) * pbx + bx]);
+      for (int bx = x0; bx <= x1; ++bx)
+        m = std::max(m, block_max_[static_cast<size_t>(by) * pbx + bx]);
       along_x[static_cast<size_t>(by) * obx + I] = m;
     }
   bound_.assign(static_cast<size_t>(oby) * obx, -3.0e38f);
@@ -98,7 +103,8 @@ void CpuBackend::shadow() {
       const int x1 = std::min(x0 + kSegment, g_.nx);
       bool settled = true;
       for (int x = x0; x < x1 && settled; ++x)
-        settled = wind_shadow::certainly_unshadowed(bound_[static_cast<size_t>(y / B) * obx + x / B], h[x], p);
+        settled = wind_shadow::certainly_unshadowed(
+            bound_[static_cast<size_t>(y / B) * obx + x / B], h[x], p);
       if (settled) {
         std::fill(out + x0, out + x1, 0.0f);
         continue;

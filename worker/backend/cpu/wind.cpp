@@ -78,9 +78,10 @@ namespace {
 // vectorises it). rows[f] holds the four gradient fields already
 // interpolated to this row's y (wind_warping::lerp_rows).
 void warp_row(const float* h, float* __restrict wx, float* __restrict wy, int nx, Vec2 a, float k,
-              const wind_warping::Params wp, const int* __restrict ax_i0, const int* __restrict ax_i1,
-              const float* __restrict ax_t, const float* __restrict gx0, const float* __restrict gy0,
-              const float* __restrict gx1, const float* __restrict gy1) {
+              const wind_warping::Params wp, const int* __restrict ax_i0,
+              const int* __restrict ax_i1, const float* __restrict ax_t,
+              const float* __restrict gx0, const float* __restrict gy0, const float* __restrict gx1,
+              const float* __restrict gy1) {
   for (int x = 0; x < nx; ++x) {
     const wind_warping::Axis ax{ax_i0[x], ax_i1[x], ax_t[x]};
     const Vec2 v = venturi::wind(a, h[x], k);
@@ -117,7 +118,8 @@ void CpuBackend::wind(Vec2 a) {
     }
     for (int I = 0; I < c.nx; ++I)
       coarse_h_[static_cast<size_t>(J) * c.nx + I] =
-          static_cast<double>(sums[static_cast<size_t>(I)]) * kUnitM / (static_cast<double>(c.cx) * c.cy);
+          static_cast<double>(sums[static_cast<size_t>(I)]) * kUnitM /
+          (static_cast<double>(c.cx) * c.cy);
   }
   fill_halo_periodic(height_m_, m_.halo_shadow());
   smoother_.gradients(coarse_h_, grad_x_, grad_y_);
@@ -132,7 +134,8 @@ void CpuBackend::wind(Vec2 a) {
       axis_x_i1_.push_back(ax.i1);
       axis_x_t_.push_back(ax.t);
     }
-    for (int y = 0; y < g_.ny; ++y) axis_y_.push_back(wind_warping::coarse_axis(g_.y0 + y, c.cy, c.ny));
+    for (int y = 0; y < g_.ny; ++y)
+      axis_y_.push_back(wind_warping::coarse_axis(g_.y0 + y, c.cy, c.ny));
   }
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y) {
@@ -141,10 +144,11 @@ void CpuBackend::wind(Vec2 a) {
     const std::vector<float>* fields[4] = {&grad_x_[0], &grad_y_[0], &grad_x_[1], &grad_y_[1]};
     for (int f = 0; f < 4; ++f)
       for (int i = 0; i < c.nx; ++i)
-        rows[static_cast<size_t>(f) * c.nx + i] = wind_warping::lerp_rows(fields[f]->data(), c.nx, ay, i);
+        rows[static_cast<size_t>(f) * c.nx + i] =
+            wind_warping::lerp_rows(fields[f]->data(), c.nx, ay, i);
     warp_row(height_m_.row(y), wind_x_.row(y), wind_y_.row(y), g_.nx, a, k, wp, axis_x_i0_.data(),
-             axis_x_i1_.data(), axis_x_t_.data(), rows.data(), rows.data() + c.nx, rows.data() + 2 * c.nx,
-             rows.data() + 3 * c.nx);
+             axis_x_i1_.data(), axis_x_t_.data(), rows.data(), rows.data() + c.nx,
+             rows.data() + 2 * c.nx, rows.data() + 3 * c.nx);
   }
 }
 

@@ -20,8 +20,8 @@ namespace erg::gpu {
 namespace {
 
 // Level-0 heights in metres: b + s for sand, b for bedrock.
-__global__ void level0_kernel(TileGeom g, bool bedrock_only, const units_t* bedrock, const units_t* sand,
-                              float* h) {
+__global__ void level0_kernel(TileGeom g, bool bedrock_only, const units_t* bedrock,
+                              const units_t* sand, float* h) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -32,8 +32,9 @@ __global__ void level0_kernel(TileGeom g, bool bedrock_only, const units_t* bedr
 // its rare correction loop: the CPU's common path plus corrections give the
 // same values cell by cell). kBedrock: unlimited supply and one repose tangent.
 template <bool kBedrock>
-__global__ void donor_kernel(TileGeom g, Offsets off, const float* h, const float* tan_l, float tan_l_const,
-                             const units_t* sand, float kc, float* frac, units_t* out, int* moved) {
+__global__ void donor_kernel(TileGeom g, Offsets off, const float* h, const float* tan_l,
+                             float tan_l_const, const units_t* sand, float kc, float* frac,
+                             units_t* out, int* moved) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
@@ -50,9 +51,10 @@ __global__ void donor_kernel(TileGeom g, Offsets off, const float* h, const floa
 // Pass 2: units each cell receives from its 8 neighbours, then the new layer
 // and its heights in the other height buffer.
 template <bool kBedrock>
-__global__ void inflow_kernel(TileGeom g, Offsets off, const float* h, const float* tan_l, float tan_l_const,
-                              const float* frac, const units_t* out, bool to_sand, units_t* target,
-                              units_t* sand, const units_t* bedrock, float* h_next) {
+__global__ void inflow_kernel(TileGeom g, Offsets off, const float* h, const float* tan_l,
+                              float tan_l_const, const float* frac, const units_t* out,
+                              bool to_sand, units_t* target, units_t* sand, const units_t* bedrock,
+                              float* h_next) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
@@ -88,33 +90,36 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
 
   ERG_LAUNCH(level0_kernel, l.grid, l.block, g_, bedrock, bedrock_.get(), sand_.get(), h_a_.get());
   fill_halo_periodic(h_a_.get(), g_, 1);
-  ERG_CUDA_CHECK(cudaMemsetAsync(moved_.get(), 0, sizeof(int) * static_cast<std::size_t>(iterations)));
+  ERG_CUDA_CHECK(
+      cudaMemsetAsync(moved_.get(), 0, sizeof(int) * static_cast<std::size_t>(iterations)));
 
   const float kc_full = m_.kc;
   for (int it = 1; it <= iterations; ++it) {
     const float kc = avalanching::kc_for(it, iterations, kc_full, m_.kc_damped);
     int* moved = moved_.get() + (it - 1);
     if (bedrock)
-      ERG_LAUNCH(donor_kernel<true>, l.grid, l.block, g_, off, h_a_.get(), nullptr, m_.tan_l_bedrock, nullptr,
-                 kc, frac_.get(), out_.get(), moved);
+      ERG_LAUNCH(donor_kernel<true>, l.grid, l.block, g_, off, h_a_.get(), nullptr,
+                 m_.tan_l_bedrock, nullptr, kc, frac_.get(), out_.get(), moved);
     else
-      ERG_LAUNCH(donor_kernel<false>, l.grid, l.block, g_, off, h_a_.get(), tan_l_.get(), 0.0f, sand_.get(),
-                 kc, frac_.get(), out_.get(), moved);
+      ERG_LAUNCH(donor_kernel<false>, l.grid, l.block, g_, off, h_a_.get(), tan_l_.get(), 0.0f,
+                 sand_.get(), kc, frac_.get(), out_.get(), moved);
     fill_halo_periodic(frac_.get(), g_, 1);
 
     if (bedrock)
-      ERG_LAUNCH(inflow_kernel<true>, l.grid, l.block, g_, off, h_a_.get(), nullptr, m_.tan_l_bedrock,
-                 frac_.get(), out_.get(), m_.bedrock_to_sand, target.get(), sand_.get(), bedrock_.get(),
-                 h_b_.get());
+      ERG_LAUNCH(inflow_kernel<true>, l.grid, l.block, g_, off, h_a_.get(), nullptr,
+                 m_.tan_l_bedrock, frac_.get(), out_.get(), m_.bedrock_to_sand, target.get(),
+                 sand_.get(), bedrock_.get(), h_b_.get());
     else
-      ERG_LAUNCH(inflow_kernel<false>, l.grid, l.block, g_, off, h_a_.get(), tan_l_.get(), 0.0f, frac_.get(),
-                 out_.get(), false, target.get(), sand_.get(), bedrock_.get(), h_b_.get());
+      ERG_LAUNCH(inflow_kernel<false>, l.grid, l.block, g_, off, h_a_.get(), tan_l_.get(), 0.0f,
+                 frac_.get(), out_.get(), false, target.get(), sand_.get(), bedrock_.get(),
+                 h_b_.get());
     h_a_.swap(h_b_);
     fill_halo_periodic(h_a_.get(), g_, 1);
   }
 
   std::vector<int> flags(static_cast<std::size_t>(iterations));
-  ERG_CUDA_CHECK(cudaMemcpy(flags.data(), moved_.get(), sizeof(int) * flags.size(), cudaMemcpyDeviceToHost));
+  ERG_CUDA_CHECK(
+      cudaMemcpy(flags.data(), moved_.get(), sizeof(int) * flags.size(), cudaMemcpyDeviceToHost));
   int moved_iterations = 0;
   for (const int f : flags) moved_iterations += f != 0 ? 1 : 0;
   return moved_iterations;
@@ -125,6 +130,8 @@ int CudaBackend::avalanche_sand() {
   return avalanche(false, m_.avalanche_iterations);
 }
 
-void CudaBackend::avalanche_bedrock() { avalanche(true, m_.bedrock_iterations); }
+void CudaBackend::avalanche_bedrock() {
+  avalanche(true, m_.bedrock_iterations);
+}
 
 }  // namespace erg::gpu

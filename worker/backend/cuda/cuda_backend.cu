@@ -23,28 +23,44 @@ void fail(const char* what, const char* detail) {
 namespace {
 const char* cufft_error_name(cufftResult r) {
   switch (r) {
-    case CUFFT_SUCCESS: return "CUFFT_SUCCESS";
-    case CUFFT_INVALID_PLAN: return "CUFFT_INVALID_PLAN";
-    case CUFFT_ALLOC_FAILED: return "CUFFT_ALLOC_FAILED";
-    case CUFFT_INVALID_TYPE: return "CUFFT_INVALID_TYPE";
-    case CUFFT_INVALID_VALUE: return "CUFFT_INVALID_VALUE";
-    case CUFFT_INTERNAL_ERROR: return "CUFFT_INTERNAL_ERROR";
-    case CUFFT_EXEC_FAILED: return "CUFFT_EXEC_FAILED";
-    case CUFFT_SETUP_FAILED: return "CUFFT_SETUP_FAILED";
-    case CUFFT_INVALID_SIZE: return "CUFFT_INVALID_SIZE";
-    case CUFFT_UNALIGNED_DATA: return "CUFFT_UNALIGNED_DATA";
-    case CUFFT_INVALID_DEVICE: return "CUFFT_INVALID_DEVICE";
-    case CUFFT_NO_WORKSPACE: return "CUFFT_NO_WORKSPACE";
-    case CUFFT_NOT_IMPLEMENTED: return "CUFFT_NOT_IMPLEMENTED";
-    case CUFFT_NOT_SUPPORTED: return "CUFFT_NOT_SUPPORTED";
-    default: return "cuFFT error";
+    case CUFFT_SUCCESS:
+      return "CUFFT_SUCCESS";
+    case CUFFT_INVALID_PLAN:
+      return "CUFFT_INVALID_PLAN";
+    case CUFFT_ALLOC_FAILED:
+      return "CUFFT_ALLOC_FAILED";
+    case CUFFT_INVALID_TYPE:
+      return "CUFFT_INVALID_TYPE";
+    case CUFFT_INVALID_VALUE:
+      return "CUFFT_INVALID_VALUE";
+    case CUFFT_INTERNAL_ERROR:
+      return "CUFFT_INTERNAL_ERROR";
+    case CUFFT_EXEC_FAILED:
+      return "CUFFT_EXEC_FAILED";
+    case CUFFT_SETUP_FAILED:
+      return "CUFFT_SETUP_FAILED";
+    case CUFFT_INVALID_SIZE:
+      return "CUFFT_INVALID_SIZE";
+    case CUFFT_UNALIGNED_DATA:
+      return "CUFFT_UNALIGNED_DATA";
+    case CUFFT_INVALID_DEVICE:
+      return "CUFFT_INVALID_DEVICE";
+    case CUFFT_NO_WORKSPACE:
+      return "CUFFT_NO_WORKSPACE";
+    case CUFFT_NOT_IMPLEMENTED:
+      return "CUFFT_NOT_IMPLEMENTED";
+    case CUFFT_NOT_SUPPORTED:
+      return "CUFFT_NOT_SUPPORTED";
+    default:
+      return "cuFFT error";
   }
 }
 }  // namespace
 
 void check_cufft(cufftResult r, const char* what) {
   if (r != CUFFT_SUCCESS) {
-    const std::string detail = std::string(cufft_error_name(r)) + " (" + std::to_string(static_cast<int>(r)) + ")";
+    const std::string detail =
+        std::string(cufft_error_name(r)) + " (" + std::to_string(static_cast<int>(r)) + ")";
     fail(what, detail.c_str());
   }
 }
@@ -65,7 +81,9 @@ void FftPlan::make_2d(int rows, int cols, cufftType type) {
 
 namespace {
 
-__device__ __forceinline__ int wrap(int v, int n) { return ((v % n) + n) % n; }
+__device__ __forceinline__ int wrap(int v, int n) {
+  return ((v % n) + n) % n;
+}
 
 // Cells of the ghost ring of width w: the w ghost rows above and below (full
 // padded width nx + 2w), then the 2w ghost columns of every owned row.
@@ -166,7 +184,8 @@ __global__ void sand_brush_kernel(TileGeom g, events::Brush b, units_t* sand, to
   if (threadIdx.x == 0) row_change[y] = change;
 }
 
-__global__ void bedrock_brush_kernel(TileGeom g, events::Brush b, units_t* bedrock, total_t* row_change) {
+__global__ void bedrock_brush_kernel(TileGeom g, events::Brush b, units_t* bedrock,
+                                     total_t* row_change) {
   __shared__ total_t red[kRowThreads];
   const int y = static_cast<int>(blockIdx.x);
   units_t* r = bedrock + g.at(0, y);
@@ -245,7 +264,8 @@ CudaBackend::CudaBackend(const Model& model) : m_(model), g_(model.tile) {
   h_b_.reset(n);
   frac_.reset(n);
   out_.reset(n);
-  moved_.reset(static_cast<std::size_t>(std::max({m_.avalanche_iterations, m_.bedrock_iterations, 1})));
+  moved_.reset(
+      static_cast<std::size_t>(std::max({m_.avalanche_iterations, m_.bedrock_iterations, 1})));
 
   // Coarse grid of the wind warping: buffers, plans (made once, here) and the
   // Gaussian transfer per spectral coefficient, evaluated on the host by the
@@ -272,7 +292,8 @@ CudaBackend::CudaBackend(const Model& model) : m_(model), g_(model.tile) {
             wind_warping::gaussian_transfer(kx, ky, c.sigma_m[s]) * norm;
       }
     }
-    ERG_CUDA_CHECK(cudaMemcpy(gauss_[s].get(), gauss.data(), nc * sizeof(double), cudaMemcpyHostToDevice));
+    ERG_CUDA_CHECK(
+        cudaMemcpy(gauss_[s].get(), gauss.data(), nc * sizeof(double), cudaMemcpyHostToDevice));
   }
   forward_.make_2d(c.ny, c.nx, CUFFT_D2Z);
   inverse_.make_2d(c.ny, c.nx, CUFFT_Z2D);
@@ -319,7 +340,8 @@ void CudaBackend::download_wind(std::vector<float>& wind_xy) {
   const Launch l = owned_cells(g_);
   ERG_LAUNCH(pack_wind_kernel, l.grid, l.block, g_, wind_x_.get(), wind_y_.get(), wind_xy_.get());
   wind_xy.resize(wind_xy_.size());
-  ERG_CUDA_CHECK(cudaMemcpy(wind_xy.data(), wind_xy_.get(), wind_xy_.bytes(), cudaMemcpyDeviceToHost));
+  ERG_CUDA_CHECK(
+      cudaMemcpy(wind_xy.data(), wind_xy_.get(), wind_xy_.bytes(), cudaMemcpyDeviceToHost));
 }
 
 void CudaBackend::download_shadow(std::vector<float>& shadow) {
@@ -348,13 +370,15 @@ total_t CudaBackend::sum_rows(int first, int count) const {
 }
 
 total_t CudaBackend::apply_sand_brush(const events::Brush& b) {
-  ERG_LAUNCH(sand_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, sand_.get(), row_sums_.get());
+  ERG_LAUNCH(sand_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, sand_.get(),
+             row_sums_.get());
   fetch_rows(g_.ny);
   return sum_rows(0, g_.ny);
 }
 
 total_t CudaBackend::apply_bedrock_brush(const events::Brush& b) {
-  ERG_LAUNCH(bedrock_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, bedrock_.get(), row_sums_.get());
+  ERG_LAUNCH(bedrock_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, bedrock_.get(),
+             row_sums_.get());
   fetch_rows(g_.ny);
   return sum_rows(0, g_.ny);
 }
@@ -376,7 +400,9 @@ Totals CudaBackend::totals() {
   return t;
 }
 
-void CudaBackend::synchronize() { ERG_CUDA_CHECK(cudaDeviceSynchronize()); }
+void CudaBackend::synchronize() {
+  ERG_CUDA_CHECK(cudaDeviceSynchronize());
+}
 
 }  // namespace gpu
 

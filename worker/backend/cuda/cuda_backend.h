@@ -38,10 +38,10 @@ void check_launch(const char* kernel);
 #define ERG_CUDA_CHECK(call) ::erg::gpu::check((call), #call)
 #define ERG_CUFFT_CHECK(call) ::erg::gpu::check_cufft((call), #call)
 // kernel<<<grid, block>>>(args...) followed by a launch check naming it.
-#define ERG_LAUNCH(kernel, grid, block, ...)   \
-  do {                                         \
-    kernel<<<(grid), (block)>>>(__VA_ARGS__);  \
-    ::erg::gpu::check_launch(#kernel);         \
+#define ERG_LAUNCH(kernel, grid, block, ...)  \
+  do {                                        \
+    kernel<<<(grid), (block)>>>(__VA_ARGS__); \
+    ::erg::gpu::check_launch(#kernel);        \
   } while (0)
 
 // ---- device memory ----------------------------------------------------------
@@ -154,8 +154,12 @@ inline Offsets neighbour_offsets(int pitch) {
 }
 
 // Cell centre of local cell (x, y) in global metres (as in the CPU backend).
-ERG_HD double centre_x(const TileGeom& g, int x) { return (g.x0 + x + 0.5) * g.cell_m; }
-ERG_HD double centre_y(const TileGeom& g, int y) { return (g.y0 + y + 0.5) * g.cell_m; }
+ERG_HD double centre_x(const TileGeom& g, int x) {
+  return (g.x0 + x + 0.5) * g.cell_m;
+}
+ERG_HD double centre_y(const TileGeom& g, int y) {
+  return (g.y0 + y + 0.5) * g.cell_m;
+}
 
 // Bedrock avalanching has no supply limit (as in the CPU backend).
 inline constexpr units_t kUnlimited = std::numeric_limits<units_t>::max() / 4;
@@ -178,12 +182,12 @@ class CudaBackend final : public Backend {
   void download_wind(std::vector<float>& wind_xy) override;
   void download_shadow(std::vector<float>& shadow) override;
 
-  void wind(Vec2 a) override;                 // wind.cu
-  void shadow() override;                     // shadow.cu
-  void saltation(std::int64_t step) override; // saltation.cu
-  void reptation() override;                  // reptation.cu
-  int avalanche_sand() override;              // avalanching.cu
-  void avalanche_bedrock() override;          // avalanching.cu
+  void wind(Vec2 a) override;                  // wind.cu
+  void shadow() override;                      // shadow.cu
+  void saltation(std::int64_t step) override;  // saltation.cu
+  void reptation() override;                   // reptation.cu
+  int avalanche_sand() override;               // avalanching.cu
+  void avalanche_bedrock() override;           // avalanching.cu
 
   total_t apply_sand_brush(const events::Brush& b) override;
   total_t apply_bedrock_brush(const events::Brush& b) override;
@@ -192,7 +196,7 @@ class CudaBackend final : public Backend {
   void synchronize() override;
 
  private:
-  void update_repose();  // tan_l from vegetation
+  void update_repose();                         // tan_l from vegetation
   int avalanche(bool bedrock, int iterations);  // avalanching.cu
   void coarse_gradients();                      // wind.cu: coarse_h_ -> grad_x_, grad_y_
   // Per-row partial sums: copy the first `count` of row_sums_ to the host,
@@ -217,16 +221,16 @@ class CudaBackend final : public Backend {
   DeviceBuffer<units_t> out_;
   DeviceBuffer<int> moved_;  // one flag per avalanching iteration
   // wind warping on the coarse grid
-  DeviceBuffer<double> coarse_h_;                 // [ny][nx] real input/output of the FFTs
-  DeviceBuffer<cufftDoubleComplex> spectrum_;     // [ny][nx/2+1]
-  DeviceBuffer<cufftDoubleComplex> work_;         // spectrum times transfer, Z2D input
-  DeviceBuffer<double> gauss_[2];                 // Gaussian transfer * 1/(nx ny), per scale
-  DeviceBuffer<float> grad_x_[2], grad_y_[2];     // [ny][nx], scale 0 large, 1 small
+  DeviceBuffer<double> coarse_h_;              // [ny][nx] real input/output of the FFTs
+  DeviceBuffer<cufftDoubleComplex> spectrum_;  // [ny][nx/2+1]
+  DeviceBuffer<cufftDoubleComplex> work_;      // spectrum times transfer, Z2D input
+  DeviceBuffer<double> gauss_[2];              // Gaussian transfer * 1/(nx ny), per scale
+  DeviceBuffer<float> grad_x_[2], grad_y_[2];  // [ny][nx], scale 0 large, 1 small
   FftPlan forward_, inverse_;
   // reductions and downloads
   DeviceBuffer<total_t> row_sums_;  // 3 ny
   std::vector<total_t> host_rows_;
-  DeviceBuffer<float> wind_xy_;     // owned wind, interleaved, for download_wind
+  DeviceBuffer<float> wind_xy_;  // owned wind, interleaved, for download_wind
 };
 
 }  // namespace erg::gpu

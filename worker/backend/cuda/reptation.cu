@@ -20,7 +20,8 @@ __global__ void reptation_kernel(TileGeom g, Offsets off, float k_r, const units
     const long long j = i + off.o[k];
     const units_t hj = bedrock[j] + sand[j];
     // The higher cell donates; both sides evaluate the same exchange.
-    delta += reptation::exchange(hi, hj, strength[i], strength[j], sand[i], sand[j], l * neighbour(k).dist, k_r);
+    delta += reptation::exchange(hi, hj, strength[i], strength[j], sand[i], sand[j],
+                                 l * neighbour(k).dist, k_r);
   }
   next[i] = sand[i] + delta;
 }

@@ -18,8 +18,8 @@ __device__ __forceinline__ void add_units(units_t* cell, units_t q) {
 
 // (1) Lift (last step's bounces are already in the airborne buffer).
 __global__ void lift_kernel(TileGeom g, saltation::Params p, std::uint64_t seed, std::uint64_t step,
-                            units_t* sand, units_t* airborne, const float* shadow, const float* vegetation,
-                            const float* wind_x, const float* wind_y) {
+                            units_t* sand, units_t* airborne, const float* shadow,
+                            const float* vegetation, const float* wind_x, const float* wind_y) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -36,9 +36,9 @@ __global__ void lift_kernel(TileGeom g, saltation::Params p, std::uint64_t seed,
 }
 
 // (2) One hop downwind into `landed` (owned + ghosts).
-__global__ void scatter_kernel(TileGeom g, saltation::Params p, std::uint64_t seed, std::uint64_t step,
-                               units_t* airborne, const float* wind_x, const float* wind_y,
-                               units_t* landed) {
+__global__ void scatter_kernel(TileGeom g, saltation::Params p, std::uint64_t seed,
+                               std::uint64_t step, units_t* airborne, const float* wind_x,
+                               const float* wind_y, units_t* landed) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -61,10 +61,11 @@ __global__ void scatter_kernel(TileGeom g, saltation::Params p, std::uint64_t se
 }
 
 // (3) Deposit, bounce, abrade; record the reptation strength.
-__global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t seed, std::uint64_t step,
-                              const units_t* landed, units_t* sand, units_t* bedrock, units_t* airborne,
-                              const float* shadow, const float* vegetation, const float* resistance,
-                              const float* wind_x, const float* wind_y, float* reptation) {
+__global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t seed,
+                              std::uint64_t step, const units_t* landed, units_t* sand,
+                              units_t* bedrock, units_t* airborne, const float* shadow,
+                              const float* vegetation, const float* resistance, const float* wind_x,
+                              const float* wind_y, float* reptation) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -72,8 +73,9 @@ __global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t see
   float u = 0.0f;
   if (p.stochastic && in > 0)
     u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kDeposit).v[0]);
-  const saltation::Impact im = saltation::impact(in, sand[i], shadow[i], vegetation[i], resistance[i],
-                                                 length(Vec2{wind_x[i], wind_y[i]}), u, p);
+  const saltation::Impact im =
+      saltation::impact(in, sand[i], shadow[i], vegetation[i], resistance[i],
+                        length(Vec2{wind_x[i], wind_y[i]}), u, p);
   sand[i] += im.deposited + im.abraded;
   bedrock[i] -= im.abraded;
   airborne[i] = im.bounced;
@@ -88,8 +90,8 @@ void CudaBackend::saltation(std::int64_t step) {
   const auto ustep = static_cast<std::uint64_t>(step);
   const Launch l = owned_cells(g_);
 
-  ERG_LAUNCH(lift_kernel, l.grid, l.block, g_, p, seed, ustep, sand_.get(), airborne_.get(), shadow_.get(),
-             vegetation_.get(), wind_x_.get(), wind_y_.get());
+  ERG_LAUNCH(lift_kernel, l.grid, l.block, g_, p, seed, ustep, sand_.get(), airborne_.get(),
+             shadow_.get(), vegetation_.get(), wind_x_.get(), wind_y_.get());
 
   ERG_CUDA_CHECK(cudaMemsetAsync(landed_.get(), 0, landed_.bytes()));
   ERG_LAUNCH(scatter_kernel, l.grid, l.block, g_, p, seed, ustep, airborne_.get(), wind_x_.get(),
@@ -97,9 +99,9 @@ void CudaBackend::saltation(std::int64_t step) {
   // Sand that left the tile re-enters on the opposite side (the torus).
   fold_halo_periodic(landed_.get(), g_, m_.halo_saltation());
 
-  ERG_LAUNCH(impact_kernel, l.grid, l.block, g_, p, seed, ustep, landed_.get(), sand_.get(), bedrock_.get(),
-             airborne_.get(), shadow_.get(), vegetation_.get(), resistance_.get(), wind_x_.get(),
-             wind_y_.get(), reptation_.get());
+  ERG_LAUNCH(impact_kernel, l.grid, l.block, g_, p, seed, ustep, landed_.get(), sand_.get(),
+             bedrock_.get(), airborne_.get(), shadow_.get(), vegetation_.get(), resistance_.get(),
+             wind_x_.get(), wind_y_.get(), reptation_.get());
 }
 
 }  // namespace erg::gpu

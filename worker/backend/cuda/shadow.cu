@@ -7,8 +7,8 @@ namespace erg::gpu {
 
 namespace {
 
-__global__ void shadow_kernel(TileGeom g, wind_shadow::Params p, const float* h_base, const float* wind_x,
-                              const float* wind_y, float* shadow) {
+__global__ void shadow_kernel(TileGeom g, wind_shadow::Params p, const float* h_base,
+                              const float* wind_x, const float* wind_y, float* shadow) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -20,8 +20,8 @@ __global__ void shadow_kernel(TileGeom g, wind_shadow::Params p, const float* h_
 void CudaBackend::shadow() {
   const Launch l = owned_cells(g_);
   // h_base points at local cell (0, 0), as wind_shadow::shadow expects.
-  ERG_LAUNCH(shadow_kernel, l.grid, l.block, g_, m_.shadow, height_m_.get() + g_.at(0, 0), wind_x_.get(),
-             wind_y_.get(), shadow_.get());
+  ERG_LAUNCH(shadow_kernel, l.grid, l.block, g_, m_.shadow, height_m_.get() + g_.at(0, 0),
+             wind_x_.get(), wind_y_.get(), shadow_.get());
 }
 
 }  // namespace erg::gpu

@@ -73,9 +73,10 @@ __global__ void to_float_kernel(const double* in, float* out, std::size_t n) {
   if (k < n) out[k] = static_cast<float>(in[k]);
 }
 
-__global__ void wind_kernel(TileGeom g, CoarseGrid c, Vec2 a, float venturi_k, wind_warping::Params wp,
-                            const float* h, const float* gx0, const float* gy0, const float* gx1,
-                            const float* gy1, float* wind_x, float* wind_y) {
+__global__ void wind_kernel(TileGeom g, CoarseGrid c, Vec2 a, float venturi_k,
+                            wind_warping::Params wp, const float* h, const float* gx0,
+                            const float* gy0, const float* gx1, const float* gy1, float* wind_x,
+                            float* wind_y) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -114,12 +115,14 @@ void CudaBackend::wind(Vec2 a) {
   const CoarseGrid& c = m_.coarse;
   const Launch cells = owned_cells(g_);
   // Heights in metres (owned + the ghosts the shadow march reads).
-  ERG_LAUNCH(heights_kernel, cells.grid, cells.block, g_, bedrock_.get(), sand_.get(), height_m_.get());
+  ERG_LAUNCH(heights_kernel, cells.grid, cells.block, g_, bedrock_.get(), sand_.get(),
+             height_m_.get());
   fill_halo_periodic(height_m_.get(), g_, m_.halo_shadow());
 
   // Exact block sums into the coarse grid. This tile is the whole domain (as
   // on the CPU); in a tiled run the same integer sums are added across ranks.
-  ERG_LAUNCH(coarse_sum_kernel, dim3(static_cast<unsigned>(c.nx * c.ny)), dim3(kCoarseThreads), g_, c, bedrock_.get(), sand_.get(), coarse_h_.get());
+  ERG_LAUNCH(coarse_sum_kernel, dim3(static_cast<unsigned>(c.nx * c.ny)), dim3(kCoarseThreads), g_,
+             c, bedrock_.get(), sand_.get(), coarse_h_.get());
   coarse_gradients();
 
   ERG_LAUNCH(wind_kernel, cells.grid, cells.block, g_, c, a, m_.venturi_k, m_.warp, height_m_.get(),
