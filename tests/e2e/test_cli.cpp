@@ -15,6 +15,7 @@
 #include <string>
 #include <thread>
 
+#include "../common/temp_dir.h"
 #include "io/io.h"
 
 namespace fs = std::filesystem;
@@ -42,24 +43,7 @@ Result run(const std::string& cmd) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), out};
 }
 
-class TempDir {
- public:
-  TempDir() {
-    const fs::path base = fs::temp_directory_path() / "erg-e2e";
-    fs::create_directories(base);
-    std::string tmpl = (base / "XXXXXX").string();
-    path_ = ::mkdtemp(tmpl.data());
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const std::string& path() const { return path_; }
-  std::string operator/(const std::string& s) const { return path_ + "/" + s; }
-
- private:
-  std::string path_;
-};
+using TempDir = erg::test_support::TempDir;
 
 void write(const std::string& path, const std::string& text) {
   std::ofstream o(path);
@@ -82,7 +66,7 @@ const char* kSmallJob = R"({
 })";
 
 TEST(Cli, RunWritesTheDocumentedOutputs) {
-  TempDir t;
+  TempDir t("erg_e2e");
   write(t / "job.json", kSmallJob);
   const Result r =
       run(kErg + " run " + (t / "job.json") + " --out " + (t / "out") + " --threads 2");
@@ -153,7 +137,7 @@ std::vector<std::int64_t> final_sand(const std::string& dir, const std::string& 
 // both transport modes.
 TEST(Cli, ResumeContinuesBitwiseIdentically) {
   for (const std::string transport : {"EXPECTED", "STOCHASTIC"}) {
-    TempDir t;
+    TempDir t("erg_e2e");
     std::string job = kSmallJob;
     job.replace(job.find("\"seed\""), 0, "\"transport\": \"" + transport + "\", ");
     write(t / "job.json", job);
@@ -176,7 +160,7 @@ TEST(Cli, ResumeContinuesBitwiseIdentically) {
 }
 
 TEST(Cli, SigtermCheckpointsAndResumeFinishesTheSameRun) {
-  TempDir t;
+  TempDir t("erg_e2e");
   std::string job = kSmallJob;
   job.replace(job.find("\"steps\": 24, \"snapshot_every\": 8, \"checkpoint_every\": 8"), 55,
               "\"steps\": 400, \"snapshot_every\": 50, \"checkpoint_every\": 100");
@@ -203,7 +187,7 @@ TEST(Cli, SigtermCheckpointsAndResumeFinishesTheSameRun) {
 }
 
 TEST(Cli, RefusesToOverwriteARunAndRejectsBadJobs) {
-  TempDir t;
+  TempDir t("erg_e2e");
   write(t / "job.json", kSmallJob);
   ASSERT_EQ(run(kErg + " run " + (t / "job.json") + " --out " + (t / "out") + " --steps 8").code,
             0);
@@ -231,7 +215,7 @@ TEST(Cli, RefusesToOverwriteARunAndRejectsBadJobs) {
 }
 
 TEST(Cli, CheckAndParamsPrintTheSchema) {
-  TempDir t;
+  TempDir t("erg_e2e");
   write(t / "job.json", kSmallJob);
   Result r = run(kErg + " check " + (t / "job.json"));
   ASSERT_EQ(r.code, 0) << r.output;
@@ -242,7 +226,7 @@ TEST(Cli, CheckAndParamsPrintTheSchema) {
 }
 
 TEST(Cli, BackendFlag) {
-  TempDir t;
+  TempDir t("erg_e2e");
   write(t / "job.json", kSmallJob);
   Result r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "a") +
                  " --steps 2 --backend auto --quiet");
@@ -270,7 +254,7 @@ TEST(Cli, BenchPrintsJsonWithStageTimes) {
 // Every example runs (for a few steps: the full runs are for users).
 class Example : public ::testing::TestWithParam<std::string> {};
 TEST_P(Example, Runs) {
-  TempDir t;
+  TempDir t("erg_e2e");
   const std::string job = kExamples + "/" + GetParam() + ".json";
   Result r = run(kErg + " check " + job);
   ASSERT_EQ(r.code, 0) << r.output;

@@ -3,6 +3,8 @@
 // independent of the code under test (libpng's simplified API).
 #pragma once
 
+#include "../common/temp_dir.h"
+
 #include <gtest/gtest.h>
 #include <png.h>
 #include <sys/resource.h>
@@ -21,45 +23,8 @@ namespace erg::io::testing {
 
 namespace fs = std::filesystem;
 
-// A fresh directory for one test, removed with everything in it afterwards.
-// The name carries the pid and test name, so ctest -j runs do not collide.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::string name = "erg_io_test_" + std::to_string(::getpid()) + "_" +
-                       (info ? std::string(info->test_suite_name()) + "_" + info->name() : "x");
-    path_ = fs::temp_directory_path() / name;
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-  const fs::path& path() const { return path_; }
-
-  // Names of the directory's entries, sorted.
-  std::set<std::string> entries() const {
-    std::set<std::string> names;
-    for (const auto& e : fs::directory_iterator(path_)) names.insert(e.path().filename().string());
-    return names;
-  }
-
-  // True when some entry looks like an erg temporary ("<name>.tmp-<pid>").
-  bool has_temporaries() const {
-    for (const auto& n : entries()) {
-      if (n.find(".tmp-") != std::string::npos) return true;
-    }
-    return false;
-  }
-
- private:
-  fs::path path_;
+struct TempDir : erg::test_support::TempDir {
+  TempDir() : erg::test_support::TempDir("erg_io_test") {}
 };
 
 inline std::string read_bytes(const std::string& path) {

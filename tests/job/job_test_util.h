@@ -3,6 +3,8 @@
 // go through erg's own io code (raw HDF5 C API, a hand-made 16-bit PNG).
 #pragma once
 
+#include "../common/temp_dir.h"
+
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <unistd.h>
@@ -21,32 +23,8 @@ namespace erg::job::testing {
 
 namespace fs = std::filesystem;
 
-// A fresh directory for one test, removed with everything in it afterwards.
-// The name carries the pid and the test name, so ctest -j runs never collide.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::string name = "erg_job_test_" + std::to_string(::getpid()) + "_" +
-                       (info ? std::string(info->test_suite_name()) + "_" + info->name() : "x");
-    for (auto& c : name)
-      if (c == '/') c = '_';
-    path_ = fs::temp_directory_path() / name;
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-  std::string str() const { return path_.string(); }
-
- private:
-  fs::path path_;
+struct TempDir : erg::test_support::TempDir {
+  TempDir() : erg::test_support::TempDir("erg_job_test") {}
 };
 
 inline void write_text(const std::string& path, const std::string& text) {

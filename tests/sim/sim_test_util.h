@@ -57,32 +57,4 @@ inline std::vector<double> sand_m(const TileState& s) {
   return h;
 }
 
-// Centroid of a mass field on a periodic axis (circular mean), in cells.
-inline double periodic_centroid_x(const std::vector<double>& m, int nx, int ny) {
-  double c = 0, s = 0;
-  const double k = 2 * M_PI / nx;
-  for (int y = 0; y < ny; ++y)
-    for (int x = 0; x < nx; ++x) {
-      const double w = m[static_cast<size_t>(y) * nx + x];
-      c += w * std::cos(k * (x + 0.5));
-      s += w * std::sin(k * (x + 0.5));
-    }
-  double a = std::atan2(s, c) / k - 0.5;
-  if (a < 0) a += nx;
-  return a;
-}
-inline double periodic_centroid_y(const std::vector<double>& m, int nx, int ny) {
-  double c = 0, s = 0;
-  const double k = 2 * M_PI / ny;
-  for (int y = 0; y < ny; ++y)
-    for (int x = 0; x < nx; ++x) {
-      const double w = m[static_cast<size_t>(y) * nx + x];
-      c += w * std::cos(k * (y + 0.5));
-      s += w * std::sin(k * (y + 0.5));
-    }
-  double a = std::atan2(s, c) / k - 0.5;
-  if (a < 0) a += ny;
-  return a;
-}
-
 }  // namespace erg::test
