@@ -163,7 +163,7 @@ TEST(Cli, SigtermCheckpointsAndResumeFinishesTheSameRun) {
   TempDir t("erg_e2e");
   std::string job = kSmallJob;
   job.replace(job.find("\"steps\": 24, \"snapshot_every\": 8, \"checkpoint_every\": 8"), 55,
-              "\"steps\": 400, \"snapshot_every\": 50, \"checkpoint_every\": 100");
+              "\"steps\": 2000, \"snapshot_every\": 50, \"checkpoint_every\": 500");
   write(t / "job.json", job);
   ASSERT_EQ(run(kErg + " run " + (t / "job.json") + " --out " + (t / "straight")).code, 0);
   const pid_t pid = ::fork();
@@ -183,7 +183,7 @@ TEST(Cli, SigtermCheckpointsAndResumeFinishesTheSameRun) {
   EXPECT_EQ(WEXITSTATUS(status), 128 + SIGTERM);
   const Result r = run(kErg + " run --resume " + (t / "stopped"));
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_TRUE(final_sand(t / "straight", "00000400") == final_sand(t / "stopped", "00000400"));
+  EXPECT_TRUE(final_sand(t / "straight", "00002000") == final_sand(t / "stopped", "00002000"));
 }
 
 TEST(Cli, RefusesToOverwriteARunAndRejectsBadJobs) {
@@ -286,6 +286,25 @@ TEST(Cli, ReadmeParameterTableMatchesTheSchema) {
   ASSERT_EQ(r.code, 0);
   EXPECT_EQ(readme.substr(b + begin.size(), e - b - begin.size()), r.output)
       << "README's table is stale: replace it with the output of `erg params`";
+}
+
+}  // namespace
+
+namespace {
+
+// The job shown in README is a valid job.
+TEST(Cli, ReadmeExampleJobIsValid) {
+  std::ifstream in(std::string(ERG_SOURCE_DIR) + "/README.md");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string readme = ss.str();
+  const size_t b = readme.find("```json\n");
+  ASSERT_NE(b, std::string::npos);
+  const size_t e = readme.find("```", b + 8);
+  TempDir t("erg_e2e");
+  write(t / "readme.json", readme.substr(b + 8, e - b - 8));
+  const Result r = run(kErg + " check " + (t / "readme.json"));
+  EXPECT_EQ(r.code, 0) << r.output;
 }
 
 }  // namespace
