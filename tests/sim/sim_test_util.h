@@ -31,11 +31,7 @@ inline RunOptions cpu_threads(int threads) {
 // Owned cells of a field, row-major [ny][nx].
 template <class T>
 std::vector<T> owned(const Field<T>& f) {
-  const TileGeom& g = f.geom();
-  std::vector<T> v(static_cast<size_t>(g.nx) * g.ny);
-  for (int y = 0; y < g.ny; ++y)
-    for (int x = 0; x < g.nx; ++x) v[static_cast<size_t>(y) * g.nx + x] = f(x, y);
-  return v;
+  return owned_cells(f);
 }
 
 // Height (bedrock + sand) in metres, owned cells.

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <new>
 #include <utility>
+#include <vector>
 
 #include "core/grid.h"
 
@@ -68,5 +69,32 @@ class Field {
   std::size_t n_ = 0;
   TileGeom geom_{};
 };
+
+// The owned cells of a field (no halo), row-major [ny][nx], each converted.
+template <class U, class T, class Convert>
+std::vector<U> owned_cells(const Field<T>& f, Convert convert) {
+  const TileGeom& g = f.geom();
+  std::vector<U> v;
+  v.reserve(static_cast<std::size_t>(g.nx) * g.ny);
+  for (int y = 0; y < g.ny; ++y)
+    for (int x = 0; x < g.nx; ++x) v.push_back(convert(f(x, y)));
+  return v;
+}
+template <class T>
+std::vector<T> owned_cells(const Field<T>& f) {
+  return owned_cells<T>(f, [](const T& t) { return t; });
+}
+
+// Sets the owned cells from row-major [ny][nx] values, each converted.
+template <class T, class V, class Convert>
+void set_owned_cells(Field<T>& f, const std::vector<V>& v, Convert convert) {
+  const TileGeom& g = f.geom();
+  for (int y = 0; y < g.ny; ++y)
+    for (int x = 0; x < g.nx; ++x) f(x, y) = convert(v[static_cast<std::size_t>(y) * g.nx + x]);
+}
+template <class T>
+void set_owned_cells(Field<T>& f, const std::vector<T>& v) {
+  set_owned_cells(f, v, [](const T& t) { return t; });
+}
 
 }  // namespace erg

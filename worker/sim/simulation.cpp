@@ -16,12 +16,6 @@ double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-template <class T, class F>
-void fill_owned(Field<T>& f, const std::vector<double>& v, F convert) {
-  const TileGeom& g = f.geom();
-  for (int y = 0; y < g.ny; ++y)
-    for (int x = 0; x < g.nx; ++x) f(x, y) = convert(v[static_cast<size_t>(y) * g.nx + x]);
-}
 
 events::Brush brush_of(const erg::v1::Brush& b, const Model& m) {
   return {b.x_m(),
@@ -40,16 +34,16 @@ TileState initial_state(const erg::v1::JobSpec& spec, const Model& model,
   s.allocate(model.tile);
   using init::LayerKind;
   const auto& L = spec.layers();
-  fill_owned(s.bedrock,
+  set_owned_cells(s.bedrock,
              init::generate_layer(L.bedrock(), LayerKind::kBedrock, spec, model.tile, base_dir),
              [](double m) { return m_to_units(m); });
-  fill_owned(s.sand, init::generate_layer(L.sand(), LayerKind::kSand, spec, model.tile, base_dir),
+  set_owned_cells(s.sand, init::generate_layer(L.sand(), LayerKind::kSand, spec, model.tile, base_dir),
              [](double m) { return m_to_units(std::max(0.0, m)); });
-  fill_owned(
+  set_owned_cells(
       s.vegetation,
       init::generate_layer(L.vegetation(), LayerKind::kVegetation, spec, model.tile, base_dir),
       [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
-  fill_owned(
+  set_owned_cells(
       s.resistance,
       init::generate_layer(L.resistance(), LayerKind::kResistance, spec, model.tile, base_dir),
       [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
@@ -77,15 +71,11 @@ Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt) {
   }
   TileState s;
   s.allocate(model_.tile);
-  for (int y = 0; y < ckpt.ny; ++y)
-    for (int x = 0; x < ckpt.nx; ++x) {
-      const size_t i = static_cast<size_t>(y) * ckpt.nx + x;
-      s.bedrock(x, y) = ckpt.bedrock_units[i];
-      s.sand(x, y) = ckpt.sand_units[i];
-      s.airborne(x, y) = ckpt.airborne_units[i];
-      s.vegetation(x, y) = ckpt.vegetation[i];
-      s.resistance(x, y) = ckpt.resistance[i];
-    }
+  set_owned_cells(s.bedrock, ckpt.bedrock_units);
+  set_owned_cells(s.sand, ckpt.sand_units);
+  set_owned_cells(s.airborne, ckpt.airborne_units);
+  set_owned_cells(s.vegetation, ckpt.vegetation);
+  set_owned_cells(s.resistance, ckpt.resistance);
   init_backend(opt, s);
 }
 
@@ -167,21 +157,11 @@ io::Checkpoint Simulation::checkpoint() {
   c.nx = g.nx;
   c.ny = g.ny;
   c.job_spec_json = spec_json_;
-  const size_t n = static_cast<size_t>(g.nx) * g.ny;
-  c.bedrock_units.resize(n);
-  c.sand_units.resize(n);
-  c.airborne_units.resize(n);
-  c.vegetation.resize(n);
-  c.resistance.resize(n);
-  for (int y = 0; y < g.ny; ++y)
-    for (int x = 0; x < g.nx; ++x) {
-      const size_t i = static_cast<size_t>(y) * g.nx + x;
-      c.bedrock_units[i] = s.bedrock(x, y);
-      c.sand_units[i] = s.sand(x, y);
-      c.airborne_units[i] = s.airborne(x, y);
-      c.vegetation[i] = s.vegetation(x, y);
-      c.resistance[i] = s.resistance(x, y);
-    }
+  c.bedrock_units = owned_cells(s.bedrock);
+  c.sand_units = owned_cells(s.sand);
+  c.airborne_units = owned_cells(s.airborne);
+  c.vegetation = owned_cells(s.vegetation);
+  c.resistance = owned_cells(s.resistance);
   c.ledger = {{"sand_added_by_events", to_decimal(sand_added_)},
               {"bedrock_added_by_events", to_decimal(bedrock_added_)}};
   return c;
@@ -189,21 +169,12 @@ io::Checkpoint Simulation::checkpoint() {
 
 Simulation::Output Simulation::output() {
   const TileState s = state();
-  const TileGeom& g = model_.tile;
   Output o;
-  const size_t n = static_cast<size_t>(g.nx) * g.ny;
-  o.bedrock.resize(n);
-  o.sand.resize(n);
-  o.vegetation.resize(n);
-  o.airborne.resize(n);
-  for (int y = 0; y < g.ny; ++y)
-    for (int x = 0; x < g.nx; ++x) {
-      const size_t i = static_cast<size_t>(y) * g.nx + x;
-      o.bedrock[i] = static_cast<float>(units_to_m_d(s.bedrock(x, y)));
-      o.sand[i] = static_cast<float>(units_to_m_d(s.sand(x, y)));
-      o.vegetation[i] = s.vegetation(x, y);
-      o.airborne[i] = static_cast<float>(units_to_m_d(s.airborne(x, y)));
-    }
+  const auto metres = [](units_t u) { return static_cast<float>(units_to_m_d(u)); };
+  o.bedrock = owned_cells<float>(s.bedrock, metres);
+  o.sand = owned_cells<float>(s.sand, metres);
+  o.airborne = owned_cells<float>(s.airborne, metres);
+  o.vegetation = owned_cells(s.vegetation);
   backend_->download_wind(o.wind);
   backend_->download_shadow(o.shadow);
   return o;
