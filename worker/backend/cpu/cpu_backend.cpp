@@ -73,9 +73,7 @@ CpuBackend::CpuBackend(const Model& model, int threads)
   tan_l_.reset(g_);
   sand_next_.reset(g_);
   h_a_.reset(g_);
-  h_b_.reset(g_);
   frac_.reset(g_);
-  out_.reset(g_);
   coarse_h_.assign(static_cast<size_t>(m_.coarse.nx) * m_.coarse.ny, 0.0);
 }
 

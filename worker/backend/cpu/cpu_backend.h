@@ -87,8 +87,7 @@ class CpuBackend final : public Backend {
   Field<float> tan_l_;           // tan(repose(v)) * l for sand
   // avalanching work buffers
   Field<units_t> sand_next_;
-  Field<float> h_a_, h_b_, frac_;
-  Field<units_t> out_;
+  Field<float> h_a_, frac_;  // heights (updated where they change), fractions f
   // wind warping
   CoarseSmoother smoother_;
   std::vector<double> coarse_h_;
