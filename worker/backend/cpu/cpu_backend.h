@@ -85,9 +85,9 @@ class CpuBackend final : public Backend {
   Field<float> reptation_;       // s_r
   Field<units_t> height_units_;  // b + s, for reptation
   Field<float> tan_l_;           // tan(repose(v)) * l for sand
-  // avalanching work buffers
-  Field<units_t> sand_next_;
-  Field<float> h_a_, frac_;  // heights (updated where they change), fractions f
+  Field<units_t> sand_next_;  // reptation writes the new sand here
+  // avalanching: heights (updated where they change) and fractions f
+  Field<float> h_a_, frac_;
   // wind warping
   CoarseSmoother smoother_;
   std::vector<double> coarse_h_;
