@@ -6,6 +6,8 @@
 // All 2-D arrays here are row-major [ny][nx] without halo; row 0 is y = 0.
 #pragma once
 
+#include <mpi.h>
+
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -101,5 +103,29 @@ Map read_hdf5_map(const std::string& path, const std::string& dataset);
 Map read_png_map(const std::string& path);
 // 16-bit greyscale PNG writer (tests, exports): values in [0, 1], row 0 = south.
 void write_png16(const std::string& path, int nx, int ny, const std::vector<double>& values01);
+
+// ---- distributed (parallel HDF5) ---------------------------------------------
+// The same files, written and read by every rank of a communicator, each with
+// its tile of the global domain. Collective: every rank of `comm` calls with
+// the same path, meta and chunk sizes. Arrays are the rank's owned cells,
+// row-major [tile ny][tile nx]. Datasets are chunked tile by tile (chunk
+// chunk_ny x chunk_nx; tiles start at multiples of the chunk) and compressed,
+// written collectively through MPI-IO. Atomic: everything is written to a
+// temporary name that rank 0 renames once every rank has closed the file; a
+// crash of any rank leaves the previous file at `path` untouched.
+struct TileSlab {
+  int x0 = 0, y0 = 0;  // first owned cell, global coordinates
+  int nx = 0, ny = 0;  // owned cells
+};
+void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const SnapshotMeta& meta,
+                             const SnapshotFields& tile_fields, const TileSlab& slab, int chunk_nx,
+                             int chunk_ny);
+// c.nx, c.ny are the global size; c's arrays hold the tile (slab) only.
+void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Checkpoint& c,
+                               const TileSlab& slab, int chunk_nx, int chunk_ny);
+// Reads the cells of `slab` (any tiling: the file does not depend on the one
+// that wrote it); the result's nx, ny are the global size and its arrays the
+// slab's cells. Collective.
+Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, const TileSlab& slab);
 
 }  // namespace erg::io

@@ -1,0 +1,73 @@
+// Halo exchange between the tiles of a periodic Cartesian communicator.
+//
+// fill(): every ghost cell (width w) gets the value of the owned cell it
+// stands for on the torus (gather). sum(): every ghost cell's value is added
+// to that owned cell and the ghost is zeroed (scatter-sum, the reverse halo
+// accumulation of AMReX SumBoundary / Cabana scatter(Sum)).
+//
+// Two phases: x (left/right neighbours, owned rows), then y (up/down
+// neighbours, full padded width, which carries the corners); sum() runs them
+// in the reverse order. Non-blocking Isend/Irecv with one tag per direction
+// (the receive uses the flipped direction's tag), so a neighbour that is both
+// left and right (2 tiles along x) or a tile that is its own neighbour (1 tile
+// along x) is exchanged correctly. (Not neighbourhood collectives: Open MPI
+// 4.1 swaps halos with them when a dimension has 1 or 2 ranks.)
+//
+// Requirements: w <= the tile's halo and w <= the size of this tile and of
+// every neighbour along each axis (checked; throws std::invalid_argument).
+#pragma once
+
+#include <mpi.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "core/field.h"
+
+namespace erg::dist {
+
+class HaloExchanger {
+ public:
+  // cart: 2-D periodic Cartesian communicator (dims[0] along x, dims[1]
+  // along y); g: this rank's tile (its nx, ny, halo, pitch). Collective: every
+  // rank learns its neighbours' tile sizes.
+  HaloExchanger(MPI_Comm cart, const TileGeom& g);
+
+  template <class T>
+  void fill(Field<T>& f, int w);
+  template <class T>
+  void sum(Field<T>& f, int w);
+
+  // Split fill for overlapping interior work with the transfer: begin_fill
+  // posts the x phase; finish_fill completes it, then runs the y phase.
+  // Nothing else may be exchanged between the two calls.
+  template <class T>
+  void begin_fill(Field<T>& f, int w);
+  template <class T>
+  void finish_fill(Field<T>& f, int w);
+
+  // Messages and bytes this rank has sent since construction or reset.
+  struct Stats {
+    long long messages = 0;
+    long long bytes = 0;
+  };
+  Stats stats() const { return stats_; }
+  void reset_stats() { stats_ = {}; }
+
+  int left() const { return left_; }
+  int right() const { return right_; }
+  int down() const { return down_; }
+  int up() const { return up_; }
+
+ private:
+  MPI_Comm cart_;
+  TileGeom g_;
+  int left_ = 0, right_ = 0, down_ = 0, up_ = 0;                 // ranks
+  int nx_left_ = 0, nx_right_ = 0, ny_down_ = 0, ny_up_ = 0;     // their tile sizes
+  std::vector<char> send_[4], recv_[4];                          // staging per direction
+  MPI_Request requests_[8];
+  int pending_ = 0;
+  Stats stats_;
+};
+
+}  // namespace erg::dist
