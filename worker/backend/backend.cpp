@@ -8,7 +8,7 @@ namespace erg {
 
 #ifdef ERG_HAVE_CUDA
 // backend/cuda/cuda_backend.cu
-std::unique_ptr<Backend> make_cuda_backend(const Model& model);
+std::unique_ptr<Backend> make_cuda_backend(const Model& model, dist::Exchange& ex, int local_rank);
 bool cuda_runtime_has_device();
 #endif
 
@@ -20,10 +20,11 @@ bool cuda_device_available() {
 #endif
 }
 
-std::unique_ptr<Backend> make_backend(BackendKind kind, const Model& model, int threads) {
+std::unique_ptr<Backend> make_backend(BackendKind kind, const Model& model, int threads,
+                                      dist::Exchange& ex, int local_rank) {
   if (kind == BackendKind::kCuda || kind == BackendKind::kAuto) {
 #ifdef ERG_HAVE_CUDA
-    if (cuda_device_available()) return make_cuda_backend(model);
+    if (cuda_device_available()) return make_cuda_backend(model, ex, local_rank);
     if (kind == BackendKind::kCuda)
       throw std::runtime_error("--backend cuda: no CUDA device is visible to this process");
     static bool told = false;
@@ -38,7 +39,7 @@ std::unique_ptr<Backend> make_backend(BackendKind kind, const Model& model, int 
     told = true;
 #endif
   }
-  return std::make_unique<cpu::CpuBackend>(model, threads);
+  return std::make_unique<cpu::CpuBackend>(model, threads, ex);
 }
 
 }  // namespace erg

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/vec2.h"
+#include "dist/exchange.h"
 #include "sim/model.h"
 #include "sim/state.h"
 #include "stages/events.h"
@@ -58,8 +59,11 @@ class Backend {
 enum class BackendKind { kAuto, kCpu, kCuda };
 
 // Creates the backend for a model. kAuto picks CUDA when a device exists and
-// falls back to the CPU otherwise, with a log line on stderr.
-std::unique_ptr<Backend> make_backend(BackendKind kind, const Model& model, int threads);
+// falls back to the CPU otherwise, with a log line on stderr. `ex` (which
+// must outlive the backend) connects the tile to the others; `local_rank`
+// picks the GPU (local_rank % devices).
+std::unique_ptr<Backend> make_backend(BackendKind kind, const Model& model, int threads,
+                                      dist::Exchange& ex, int local_rank = 0);
 
 // True when this build has the CUDA backend and the runtime sees a device.
 bool cuda_device_available();

@@ -15,6 +15,9 @@
 //
 // Requirements: w <= the tile's halo and w <= the size of this tile and of
 // every neighbour along each axis (checked; throws std::invalid_argument).
+// The check uses the smallest halo and tile side over all ranks (learnt by
+// the constructor), so every rank throws alike instead of some waiting
+// forever for ranks that threw.
 #pragma once
 
 #include <mpi.h>
@@ -62,9 +65,10 @@ class HaloExchanger {
  private:
   MPI_Comm cart_;
   TileGeom g_;
-  int left_ = 0, right_ = 0, down_ = 0, up_ = 0;                 // ranks
-  int nx_left_ = 0, nx_right_ = 0, ny_down_ = 0, ny_up_ = 0;     // their tile sizes
-  std::vector<char> send_[4], recv_[4];                          // staging per direction
+  int left_ = 0, right_ = 0, down_ = 0, up_ = 0;              // ranks
+  int nx_left_ = 0, nx_right_ = 0, ny_down_ = 0, ny_up_ = 0;  // their tile sizes
+  int max_width_ = 0;                    // smallest halo, nx and ny over all ranks
+  std::vector<char> send_[4], recv_[4];  // staging per direction
   MPI_Request requests_[8];
   int pending_ = 0;
   Stats stats_;

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "io/io.h"
+#include "stages/wind_warping.h"
 
 namespace erg::job {
 
@@ -328,6 +329,13 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
   if (m.shadow_angle_min_deg() >= m.shadow_angle_max_deg())
     out.push_back("model.shadow_angle_min_deg = " + num(m.shadow_angle_min_deg()) +
                   " must be below model.shadow_angle_max_deg = " + num(m.shadow_angle_max_deg()));
+  // The wind-warping coarse grid needs a divisor of each side (model.cpp).
+  const double max_coarse_m = 0.25 * 0.5 * std::min(m.warp_large_radius_m(), m.warp_small_radius_m());
+  for (const auto& [name, n] : {std::pair<const char*, long long>{"domain.nx", d.nx()}, {"domain.ny", d.ny()}})
+    if (wind_warping::coarse_factor(static_cast<int>(n), l, max_coarse_m) == 0)
+      out.push_back(std::string(name) + " = " + std::to_string(n) +
+                    " has no divisor c with " + name + " / c <= " + std::to_string(wind_warping::kMaxCoarseCells) +
+                    " (the coarse grid of the wind warping); choose a size with small prime factors");
   if (m.warp_large_weight() + m.warp_small_weight() <= 0)
     out.push_back("model.warp_large_weight + model.warp_small_weight = 0; allowed > 0");
 

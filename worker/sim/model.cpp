@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "core/units.h"
 
@@ -11,14 +12,7 @@ namespace {
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 }
 
-int coarse_factor(int n, double cell_m, double max_m) {
-  int best = 1;
-  for (int c = 1; c <= n; ++c)
-    if (n % c == 0 && c * cell_m <= max_m) best = c;
-  return best;
-}
-
-Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0) {
+Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0, int avalanche_round) {
   const auto& m = spec.model();
   const double l = spec.domain().cell_size_m();
   Model md;
@@ -37,8 +31,10 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0) {
   c.sigma_m[0] = 0.5 * m.warp_large_radius_m();
   c.sigma_m[1] = 0.5 * m.warp_small_radius_m();
   const double max_coarse_m = 0.25 * std::min(c.sigma_m[0], c.sigma_m[1]);
-  c.cx = coarse_factor(gnx, l, max_coarse_m);
-  c.cy = coarse_factor(gny, l, max_coarse_m);
+  c.cx = wind_warping::coarse_factor(gnx, l, max_coarse_m);
+  c.cy = wind_warping::coarse_factor(gny, l, max_coarse_m);
+  if (c.cx == 0 || c.cy == 0)
+    throw std::invalid_argument("domain.nx or domain.ny has no divisor for the coarse wind grid");
   c.nx = gnx / c.cx;
   c.ny = gny / c.cy;
   c.lx_m = gnx * l;
@@ -72,6 +68,7 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0) {
   md.bedrock_iterations = static_cast<int>(m.bedrock_avalanche_iterations());
   md.bedrock_to_sand = m.bedrock_to_sand();
   md.time_step_days = m.time_step_days();
+  md.avalanche_round = avalanche_round;
 
   TileGeom& t = md.tile;
   t.nx = nx;
@@ -81,7 +78,7 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0) {
   t.gnx = gnx;
   t.gny = gny;
   t.cell_m = static_cast<float>(l);
-  t.halo = std::max({md.halo_shadow(), md.halo_saltation(), 2});
+  t.halo = std::max({md.halo_shadow(), md.halo_saltation(), md.halo_avalanche() + 1, 2});
   t.pitch = padded_pitch(nx, t.halo);
   return md;
 }

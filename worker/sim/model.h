@@ -3,6 +3,7 @@
 // POD structs by value.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 
@@ -48,15 +49,25 @@ struct Model {
   int halo_saltation() const {  // hop reach + bilinear footprint
     return static_cast<int>(std::ceil(saltation.max_hop_m / tile.cell_m)) + 2;
   }
-  static constexpr int kHaloStencil = 1;  // reptation, avalanching
+  // Avalanching iterations between two exchanges of the avalanching layers:
+  // 0 means all of a step's iterations (one exchange per step, whatever their
+  // number: several tiles); 1 refills the ghosts before every iteration (one
+  // tile, where a refill is a local copy and a wide halo only adds work).
+  int avalanche_round = 0;
+  int avalanche_round_for(int iterations) const {
+    return avalanche_round <= 0 ? iterations : std::min(avalanche_round, iterations);
+  }
+  // Ghost-zone expansion: a round of R iterations runs inside a halo of 2R
+  // cells (two cells per iteration); reptation, just before, needs one more.
+  int halo_avalanche() const {
+    return 2 * avalanche_round_for(std::max(avalanche_iterations, bedrock_iterations));
+  }
 };
 
 // Resolves a defaults-filled, validated spec for a tile of `nx x ny` owned
 // cells at global offset (x0, y0); the halo is chosen to cover every stage.
-Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0);
+// avalanche_round: see Model (1 for one tile, 0 for several).
+Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0, int avalanche_round = 1);
 
-// Coarse factor along one axis: the largest divisor of n whose coarse cells
-// are at most `max_m` wide (at least 1).
-int coarse_factor(int n, double cell_m, double max_m);
 
 }  // namespace erg

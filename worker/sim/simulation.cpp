@@ -50,20 +50,36 @@ TileState initial_state(const erg::v1::JobSpec& spec, const Model& model,
   return s;
 }
 
+void Simulation::place_tile(const Placement& place) {
+  const int gnx = static_cast<int>(spec_.domain().nx()), gny = static_cast<int>(spec_.domain().ny());
+  if (place.exchange) {
+    exchange_ = place.exchange;
+  } else {
+    own_exchange_ = std::make_unique<dist::PeriodicExchange>();
+    exchange_ = own_exchange_.get();
+  }
+  local_rank_ = place.local_rank;
+  // Several tiles: one exchange per step for all avalanching iterations.
+  const int round = exchange_->tiles() > 1 ? 0 : 1;
+  if (place.nx > 0)
+    model_ = make_model(spec_, place.nx, place.ny, place.x0, place.y0, round);
+  else
+    model_ = make_model(spec_, gnx, gny, 0, 0, round);
+}
+
 Simulation::Simulation(const erg::v1::JobSpec& spec, const std::string& base_dir,
-                       const RunOptions& opt)
+                       const RunOptions& opt, const Placement& place)
     : spec_(spec) {
   spec_json_ = job::to_json(spec_);
-  model_ = make_model(spec_, static_cast<int>(spec_.domain().nx()),
-                      static_cast<int>(spec_.domain().ny()), 0, 0);
+  place_tile(place);
   init_backend(opt, initial_state(spec_, model_, base_dir));
 }
 
-Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt) {
+Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt, const Placement& place) {
   spec_ = job::parse_json(ckpt.job_spec_json, "checkpoint job_spec");
   job::apply_defaults(spec_);
   spec_json_ = job::to_json(spec_);
-  model_ = make_model(spec_, ckpt.nx, ckpt.ny, 0, 0);
+  place_tile(place);
   step_ = ckpt.step;
   for (const auto& [name, value] : ckpt.ledger) {
     if (name == "sand_added_by_events") sand_added_ = parse_decimal(value);
@@ -81,7 +97,7 @@ Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt) {
 
 void Simulation::init_backend(const RunOptions& opt, const TileState& initial) {
   model_.avalanche_everywhere = opt.avalanche_everywhere;
-  backend_ = make_backend(opt.backend, model_, opt.threads);
+  backend_ = make_backend(opt.backend, model_, opt.threads, *exchange_, local_rank_);
   backend_->upload(initial);
 }
 
@@ -154,8 +170,8 @@ io::Checkpoint Simulation::checkpoint() {
   const TileGeom& g = model_.tile;
   io::Checkpoint c;
   c.step = step_;
-  c.nx = g.nx;
-  c.ny = g.ny;
+  c.nx = g.gnx;
+  c.ny = g.gny;
   c.job_spec_json = spec_json_;
   c.bedrock_units = owned_cells(s.bedrock);
   c.sand_units = owned_cells(s.sand);

@@ -15,6 +15,14 @@
 
 namespace erg {
 
+// Where a simulation's tile sits in the domain, and how it reaches the other
+// tiles. The default is one tile that is the whole torus.
+struct Placement {
+  int x0 = 0, y0 = 0, nx = 0, ny = 0;     // owned cells; nx = 0: the whole domain
+  dist::Exchange* exchange = nullptr;     // null: the periodic wrap of one tile
+  int local_rank = 0;                     // picks the GPU
+};
+
 struct RunOptions {
   BackendKind backend = BackendKind::kAuto;
   int threads = 0;                    // 0: all hardware threads (OMP_NUM_THREADS)
@@ -36,9 +44,11 @@ class Simulation {
  public:
   // A new run: generates the initial layers of a defaults-filled, validated
   // spec. base_dir resolves relative map paths.
-  Simulation(const erg::v1::JobSpec& spec, const std::string& base_dir, const RunOptions& opt);
-  // A run continued from a checkpoint (its spec is inside).
-  Simulation(const io::Checkpoint& ckpt, const RunOptions& opt);
+  Simulation(const erg::v1::JobSpec& spec, const std::string& base_dir, const RunOptions& opt,
+             const Placement& place = {});
+  // A run continued from a checkpoint (its spec is inside). Its arrays hold
+  // the tile's cells (the whole domain when place is the default).
+  Simulation(const io::Checkpoint& ckpt, const RunOptions& opt, const Placement& place = {});
 
   // Advances one step: the step's events, then the pipeline.
   void step();
@@ -48,17 +58,19 @@ class Simulation {
   const erg::v1::JobSpec& spec() const { return spec_; }
   const Model& model() const { return model_; }
   Backend& backend() { return *backend_; }
+  dist::Exchange& exchange() { return *exchange_; }
   Totals totals() { return backend_->totals(); }
   const StageTimes& times() const { return times_; }
   // Exact change of the totals made by timeline events so far.
   total_t sand_added_by_events() const { return sand_added_; }
   total_t bedrock_added_by_events() const { return bedrock_added_; }
 
-  // The exact state (downloaded from the backend).
+  // The exact state of this tile (downloaded from the backend).
   TileState state();
+  // The tile's exact state; nx, ny are the global domain size.
   io::Checkpoint checkpoint();
 
-  // Float fields of the owned cells, row-major [ny][nx], for snapshots.
+  // Float fields of the tile's owned cells, row-major, for snapshots.
   struct Output {
     std::vector<float> bedrock, sand, vegetation, wind, airborne, shadow;
   };
@@ -66,12 +78,16 @@ class Simulation {
   io::SnapshotMeta snapshot_meta();
 
  private:
+  void place_tile(const Placement& place);
   void init_backend(const RunOptions& opt, const TileState& initial);
   void apply_events(std::int64_t step);
 
   erg::v1::JobSpec spec_;
   std::string spec_json_;
   Model model_;
+  std::unique_ptr<dist::Exchange> own_exchange_;  // when the placement gives none
+  dist::Exchange* exchange_ = nullptr;
+  int local_rank_ = 0;
   std::unique_ptr<Backend> backend_;
   std::int64_t step_ = 0;
   total_t sand_added_ = 0, bedrock_added_ = 0;

@@ -87,4 +87,21 @@ ERG_HD float sample_coarse(const float* coarse, int cnx, int cny, int cx, int cy
   return sample_at(coarse, cnx, coarse_axis(gx, cx, cnx), coarse_axis(gy, cy, cny));
 }
 
+// The coarse grid (host). Coarse factor along one axis: the largest divisor
+// c of n whose coarse cells are at most `max_m` wide (a quarter of the smaller
+// sigma) with at most kMaxCoarseCells coarse cells; on huge domains, the
+// smallest divisor that keeps the grid that small, which widens the smallest
+// smoothing a little (README, "Scaling"). 0 when no divisor works (n prime
+// and larger than kMaxCoarseCells).
+inline constexpr int kMaxCoarseCells = 2048;
+inline int coarse_factor(int n, double cell_m, double max_m) {
+  int best = 0;
+  for (int c = 1; c <= n; ++c)
+    if (n % c == 0 && c * cell_m <= max_m && n / c <= kMaxCoarseCells) best = c;
+  if (best > 0) return best;
+  for (int c = 1; c <= n; ++c)
+    if (n % c == 0 && n / c <= kMaxCoarseCells) return n / c >= 2 ? c : 0;
+  return 0;
+}
+
 }  // namespace erg::wind_warping

@@ -5,6 +5,15 @@
 // same shares, so they agree to the unit), then the changed heights are
 // recomputed. Heights are read only from the previous iteration.
 //
+// Ghost-zone expansion (DESIGN.md section 4): iterations run in rounds of R;
+// a round starts from layers whose ghosts are filled 2R + 1 cells wide, and
+// its j-th iteration runs on the tile grown by 2(R - j) cells, so after R
+// iterations the owned cells are exact, with no exchange in between. Ghost
+// cells are recomputed exactly as their owners compute them (same inputs,
+// same functions). With several tiles a round is all N iterations of a step
+// (one exchange per step, whatever N: the one before reptation); one tile
+// refills its ghosts, a local copy, before every iteration (R = 1).
+//
 // Work is tracked in segments of 64 cells of a row. After the first
 // iteration, which visits every cell, an iteration visits only the segments
 // where something can happen: pass 1 where a height within two cells changed
@@ -12,15 +21,14 @@
 // cell of a donor. Everywhere else the iteration is the identity, so the
 // result is exactly that of visiting every cell, at a fraction of the cost
 // once the terrain is mostly settled. Iterations stop once nothing moved and
-// nothing can move later.
-#include "stages/avalanching.h"
-
+// nothing can move later (on this tile's region: no communication).
 #include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <vector>
 
 #include "backend/cpu/cpu_backend.h"
+#include "stages/avalanching.h"
 
 namespace erg::cpu {
 
@@ -69,8 +77,8 @@ bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, con
   return positive > 0;
 }
 
-// Pass 2 on cells [x0, x1) of a row: net units each cell gains. Returns
-// whether any cell sent or received anything.
+// Pass 2 on cells [x0, x1) of a row: units each cell gains and loses.
+// Returns whether any cell sent or received anything.
 template <bool kBedrock>
 bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, const float* frac,
                       const Stencil& st, int x0, int x1, units_t* __restrict gain,
@@ -100,19 +108,17 @@ bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, con
 }
 
 // Marks, in `out`, the segments within `dy` rows and one segment of a marked
-// segment of `in` (periodic in both directions).
+// segment of `in` (clipped at the region's edges: the region is a tile with
+// its ghosts, not a torus).
 void dilate(const std::vector<std::uint8_t>& in, std::vector<std::uint8_t>& out, int rows, int segs,
             int dy) {
   std::fill(out.begin(), out.end(), 0);
   for (int y = 0; y < rows; ++y)
     for (int s = 0; s < segs; ++s) {
       if (!in[static_cast<size_t>(y) * segs + s]) continue;
-      for (int d = -dy; d <= dy; ++d) {
-        const int yy = ((y + d) % rows + rows) % rows;
+      for (int yy = std::max(0, y - dy); yy <= std::min(rows - 1, y + dy); ++yy) {
         std::uint8_t* r = out.data() + static_cast<size_t>(yy) * segs;
-        r[(s + segs - 1) % segs] = 1;
-        r[s] = 1;
-        r[(s + 1) % segs] = 1;
+        for (int ss = std::max(0, s - 1); ss <= std::min(segs - 1, s + 1); ++ss) r[ss] = 1;
       }
     }
 }
@@ -124,64 +130,100 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
   if (iterations <= 0) return 0;
   const Stencil st(g_.pitch);
   const int nx = g_.nx, ny = g_.ny;
-  const int segs = (nx + kSegment - 1) / kSegment;
-  const size_t nseg = static_cast<size_t>(ny) * segs;
+  // Iteration j of a round of R runs pass 2 on the tile grown by 2 (R - j)
+  // cells and pass 1 on one more; a round starts at e = 2R, within the ghosts
+  // the exchange before reptation (or the refill of the round) filled.
+  const int round = m_.avalanche_round_for(iterations);
+  const int e = 2 * round;
+  const int rows = ny + 2 * e, cols = nx + 2 * e;
+  const int segs = (cols + kSegment - 1) / kSegment;
+  const size_t nseg = static_cast<size_t>(rows) * segs;
   Field<units_t>& target = bedrock ? bedrock_ : sand_;
   const float tan_b = m_.tan_l_bedrock;
 
-  // Heights in metres before the first iteration.
+  // Heights in metres on rows [y0, y1) and columns [x0, x1).
+  auto heights = [&](int y0, int y1, int x0, int x1) {
 #pragma omp parallel for num_threads(threads_) schedule(static)
-  for (int y = 0; y < ny; ++y) {
-    const units_t* b = bedrock_.row(y);
-    const units_t* s = sand_.row(y);
-    float* h = h_a_.row(y);
-    for (int x = 0; x < nx; ++x) h[x] = units_to_m(bedrock ? b[x] : b[x] + s[x]);
-  }
-  fill_halo_periodic(h_a_, 1);
+    for (int y = y0; y < y1; ++y) {
+      const units_t* b = bedrock_.row(y);
+      const units_t* s = sand_.row(y);
+      float* h = h_a_.row(y);
+      for (int x = x0; x < x1; ++x) h[x] = units_to_m(bedrock ? b[x] : b[x] + s[x]);
+    }
+  };
+  heights(-e, ny + e, -e, nx + e);
 
+  // Segment (r, s) covers row r - e, columns [s * 64 - e, (s + 1) * 64 - e).
   std::vector<std::uint8_t> visit(nseg, 1), positive(nseg, 0), exchange(nseg, 0), changed(nseg, 0);
   int moved_iterations = 0;
   for (int it = 1; it <= iterations; ++it) {
     const float kc = avalanching::kc_for(it, iterations, m_.kc, m_.kc_damped);
+    const int j = (it - 1) % round + 1;  // iteration within the round
+    if (j == 1 && it > 1) {
+      // A new round: refill the ghosts of the layer that moved, recompute
+      // their heights, and revisit every cell that reads them.
+      ex_.fill(target, e + 1);
+      heights(-e, 0, -e, nx + e);
+      heights(ny, ny + e, -e, nx + e);
+      heights(0, ny, -e, 0);
+      heights(0, ny, nx, nx + e);
+      for (int r = 0; r < rows; ++r)
+        for (int s = 0; s < segs; ++s) {
+          const int y = r - e, x0 = s * kSegment - e, x1 = x0 + kSegment;
+          const bool near_edge =
+              y < e + 2 || y >= ny - e - 2 || x0 < e + 2 || x1 > nx - e - 2;
+          if (near_edge) visit[static_cast<size_t>(r) * segs + s] = 1;
+        }
+    }
+    const int grow1 = 2 * (round - j) + 1, grow2 = grow1 - 1;  // pass 1, pass 2
 
     // Pass 1: fractions where heights may have changed, or donors remain.
     bool any_positive = false;
 #pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_positive)
-    for (int y = 0; y < ny; ++y)
+    for (int r = 0; r < rows; ++r) {
+      const int y = r - e;
       for (int s = 0; s < segs; ++s) {
-        const size_t k = static_cast<size_t>(y) * segs + s;
-        if (!visit[k]) continue;
-        const int x0 = s * kSegment, x1 = std::min(nx, x0 + kSegment);
+        const size_t k = static_cast<size_t>(r) * segs + s;
+        positive[k] = 0;
+        if (!visit[k] || y < -grow1 || y >= ny + grow1) continue;
+        const int x0 = std::max(s * kSegment - e, -grow1);
+        const int x1 = std::min((s + 1) * kSegment - e, nx + grow1);
+        if (x0 >= x1) continue;
         positive[k] = bedrock ? fraction_segment<true>(h_a_.row(y), nullptr, tan_b, nullptr, kc, st,
                                                        x0, x1, frac_.row(y))
                               : fraction_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f,
                                                         sand_.row(y), kc, st, x0, x1, frac_.row(y));
         any_positive = any_positive || positive[k];
       }
+    }
     if (!any_positive) {
       // Every f is 0: nothing exceeds repose (or nothing is available), for
       // any k_c. This and every later iteration are the identity.
       if (settled) *settled = true;
       break;
     }
-    fill_halo_periodic(frac_, 1);
 
-    // Pass 2: exchanges within one cell of a donor.
-    dilate(positive, exchange, ny, segs, 1);
+    // Pass 2: exchanges within one cell of a donor (it reads f only inside
+    // this iteration's pass-1 region).
+    dilate(positive, exchange, rows, segs, 1);
     if (m_.avalanche_everywhere) std::fill(exchange.begin(), exchange.end(), 1);
     bool any_change = false;
 #pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_change)
-    for (int y = 0; y < ny; ++y) {
+    for (int r = 0; r < rows; ++r) {
+      const int y = r - e;
       units_t gain[kSegment], loss[kSegment];
       for (int s = 0; s < segs; ++s) {
-        const size_t k = static_cast<size_t>(y) * segs + s;
+        const size_t k = static_cast<size_t>(r) * segs + s;
         changed[k] = 0;
-        if (!exchange[k]) continue;
-        const int x0 = s * kSegment, x1 = std::min(nx, x0 + kSegment);
-        const bool active = bedrock ? exchange_segment<true>(h_a_.row(y), nullptr, tan_b,
-                                                             frac_.row(y), st, x0, x1, gain, loss)
-                                    : exchange_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f,
-                                                              frac_.row(y), st, x0, x1, gain, loss);
+        if (!exchange[k] || y < -grow2 || y >= ny + grow2) continue;
+        const int x0 = std::max(s * kSegment - e, -grow2);
+        const int x1 = std::min((s + 1) * kSegment - e, nx + grow2);
+        if (x0 >= x1) continue;
+        const bool active =
+            bedrock ? exchange_segment<true>(h_a_.row(y), nullptr, tan_b, frac_.row(y), st, x0, x1,
+                                             gain, loss)
+                    : exchange_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f, frac_.row(y), st,
+                                              x0, x1, gain, loss);
         if (!active) continue;
         // Pass 2 reads only heights and fractions, so the layers can be
         // updated in place.
@@ -215,20 +257,22 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
 
     // New heights where layers changed (after pass 2: it read the old ones).
 #pragma omp parallel for num_threads(threads_) schedule(dynamic, 4)
-    for (int y = 0; y < ny; ++y)
+    for (int r = 0; r < rows; ++r) {
+      const int y = r - e;
       for (int s = 0; s < segs; ++s) {
-        if (!changed[static_cast<size_t>(y) * segs + s]) continue;
-        const int x0 = s * kSegment, x1 = std::min(nx, x0 + kSegment);
+        if (!changed[static_cast<size_t>(r) * segs + s]) continue;
+        const int x0 = std::max(s * kSegment - e, -grow2);
+        const int x1 = std::min((s + 1) * kSegment - e, nx + grow2);
         const units_t* b = bedrock_.row(y);
         const units_t* sd = sand_.row(y);
         float* h = h_a_.row(y);
         for (int x = x0; x < x1; ++x) h[x] = units_to_m(bedrock ? b[x] : b[x] + sd[x]);
       }
-    fill_halo_periodic(h_a_, 1);
+    }
 
     // Next pass 1: within two cells of a change, and wherever donors remain
     // (k_c may change their f).
-    dilate(changed, visit, ny, segs, 2);
+    dilate(changed, visit, rows, segs, 2);
     for (size_t k = 0; k < nseg; ++k)
       visit[k] |= positive[k] | static_cast<std::uint8_t>(m_.avalanche_everywhere);
   }
@@ -241,10 +285,11 @@ int CpuBackend::avalanche_sand() {
 }
 
 // Bedrock only changes by abrasion and events. Once an avalanche found it
-// settled (no cell exceeds the bedrock repose angle), running it again on
-// the same bedrock is the identity, so it is skipped until bedrock changes.
+// settled on every tile (no cell exceeds the bedrock repose angle), running
+// it again on the same bedrock is the identity, so it is skipped until
+// bedrock changes somewhere.
 void CpuBackend::avalanche_bedrock() {
-  if (!bedrock_changed_) return;
+  if (!ex_.any(bedrock_changed_)) return;
   bool settled = false;
   avalanche(true, m_.bedrock_iterations, &settled);
   bedrock_changed_ = !settled;

@@ -8,55 +8,11 @@
 
 namespace erg::cpu {
 
-template <class T>
-void fill_halo_periodic(Field<T>& f, int width) {
-  const TileGeom& g = f.geom();
-  const int w = width < g.halo ? width : g.halo;
-  if (w <= 0) return;
-  // Columns first, on owned rows; then whole ghost rows copy owned rows
-  // (which now carry their column ghosts). Modulo handles halos wider than
-  // the tile on tiny domains.
-  for (int y = 0; y < g.ny; ++y) {
-    T* r = f.row(y);
-    for (int x = -w; x < 0; ++x) r[x] = r[((x % g.nx) + g.nx) % g.nx];
-    for (int x = g.nx; x < g.nx + w; ++x) r[x] = r[x % g.nx];
-  }
-  for (int y = -w; y < g.ny + w; ++y) {
-    if (y >= 0 && y < g.ny) continue;
-    const int src = ((y % g.ny) + g.ny) % g.ny;
-    std::memcpy(f.row(y) - w, f.row(src) - w, sizeof(T) * static_cast<size_t>(g.nx + 2 * w));
-  }
-}
-
-template <class T>
-void fold_halo_periodic(Field<T>& f, int width) {
-  const TileGeom& g = f.geom();
-  const int w = width < g.halo ? width : g.halo;
-  for (int y = -w; y < g.ny + w; ++y) {
-    const bool ghost_row = y < 0 || y >= g.ny;
-    const int oy = ((y % g.ny) + g.ny) % g.ny;
-    for (int x = -w; x < g.nx + w; ++x) {
-      if (!ghost_row && x >= 0 && x < g.nx) {
-        x = g.nx - 1;  // skip the owned span
-        continue;
-      }
-      T& v = f(x, y);
-      if (v != T{}) {
-        f(((x % g.nx) + g.nx) % g.nx, oy) += v;
-        v = T{};
-      }
-    }
-  }
-}
-
-template void fill_halo_periodic(Field<units_t>&, int);
-template void fill_halo_periodic(Field<float>&, int);
-template void fold_halo_periodic(Field<units_t>&, int);
-
-CpuBackend::CpuBackend(const Model& model, int threads)
+CpuBackend::CpuBackend(const Model& model, int threads, dist::Exchange& ex)
     : m_(model),
       g_(model.tile),
       threads_(threads > 0 ? threads : omp_get_max_threads()),
+      ex_(ex),
       smoother_(model.coarse) {
   bedrock_.reset(g_);
   sand_.reset(g_);
@@ -120,7 +76,8 @@ void CpuBackend::update_repose() {
     for (int x = 0; x < g_.nx; ++x)
       t[x] = vegetation::repose_tan(v[x], m_.tan_l_sand, m_.tan_l_vegetated);
   }
-  fill_halo_periodic(tan_l_, Model::kHaloStencil);
+  // Avalanching reads the tangents inside its whole halo.
+  ex_.fill(tan_l_, m_.halo_avalanche() + 1);
 }
 
 namespace {
@@ -145,7 +102,9 @@ total_t CpuBackend::apply_sand_brush(const events::Brush& b) {
       change += d;
     }
   }
-  return change;
+  std::vector<total_t> all{change};
+  ex_.sum_exact(all);
+  return all[0];
 }
 
 total_t CpuBackend::apply_bedrock_brush(const events::Brush& b) {
@@ -160,7 +119,9 @@ total_t CpuBackend::apply_bedrock_brush(const events::Brush& b) {
     }
   }
   bedrock_changed_ = true;
-  return change;
+  std::vector<total_t> all{change};
+  ex_.sum_exact(all);
+  return all[0];
 }
 
 void CpuBackend::set_vegetation(const events::Region& r) {
@@ -198,7 +159,9 @@ Totals CpuBackend::totals() {
     t.airborne += ra[y];
     t.bedrock += rb[y];
   }
-  return t;
+  std::vector<total_t> all{t.sand, t.airborne, t.bedrock};
+  ex_.sum_exact(all);
+  return {all[0], all[1], all[2]};
 }
 
 }  // namespace erg::cpu

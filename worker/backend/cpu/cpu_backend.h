@@ -9,18 +9,10 @@
 
 #include "backend/backend.h"
 #include "core/field.h"
+#include "dist/exchange.h"
 #include "stages/wind_warping.h"
 
 namespace erg::cpu {
-
-// Periodic ghost cells of one tile that is the whole torus. (Between MPI
-// ranks the same ghosts are filled by halo exchange instead.)
-template <class T>
-void fill_halo_periodic(Field<T>& f, int width);
-// Adds every ghost cell into the owned cell it wraps onto, then zeroes the
-// ghosts (reverse halo accumulation of a scatter).
-template <class T>
-void fold_halo_periodic(Field<T>& f, int width);
 
 // Gaussian smoothing and gradients on the periodic coarse grid (FFTW, double,
 // FFTW_ESTIMATE plans so the algorithm never changes between runs).
@@ -45,7 +37,8 @@ class CoarseSmoother {
 
 class CpuBackend final : public Backend {
  public:
-  CpuBackend(const Model& model, int threads);
+  // `ex` fills ghosts and sums across tiles; it must outlive the backend.
+  CpuBackend(const Model& model, int threads, dist::Exchange& ex);
   std::string name() const override { return "cpu"; }
   void upload(const TileState& s) override;
   void download(TileState& s) override;
@@ -74,6 +67,7 @@ class CpuBackend final : public Backend {
   Model m_;
   TileGeom g_;
   int threads_;
+  dist::Exchange& ex_;
   // exact state
   Field<units_t> bedrock_, sand_, airborne_;
   Field<float> vegetation_, resistance_;

@@ -31,22 +31,27 @@ void reptation_row(const units_t* h, const units_t* s, const float* sr, units_t*
 }  // namespace
 
 void CpuBackend::reptation() {
+  // One exchange for reptation and avalanching together: the layers and the
+  // impact strengths with the avalanching halo plus one. Reptation then runs
+  // on the tile grown by the avalanching halo (its ghosts computed exactly as
+  // their owners compute them), and avalanching needs no exchange.
+  const int w = m_.halo_avalanche() + 1;
+  ex_.fill(sand_, w);
+  ex_.fill(bedrock_, w);
   if (m_.reptation_k <= 0.0f) return;
-  const int w = Model::kHaloStencil;
+  ex_.fill(reptation_, w);
+  const int e = w - 1;
 #pragma omp parallel for num_threads(threads_) schedule(static)
-  for (int y = 0; y < g_.ny; ++y) {
+  for (int y = -w; y < g_.ny + w; ++y) {
     const units_t* b = bedrock_.row(y);
     const units_t* s = sand_.row(y);
     units_t* h = height_units_.row(y);
-    for (int x = 0; x < g_.nx; ++x) h[x] = b[x] + s[x];
+    for (int x = -w; x < g_.nx + w; ++x) h[x] = b[x] + s[x];
   }
-  fill_halo_periodic(height_units_, w);
-  fill_halo_periodic(sand_, w);
-  fill_halo_periodic(reptation_, w);
 #pragma omp parallel for num_threads(threads_) schedule(static)
-  for (int y = 0; y < g_.ny; ++y)
-    reptation_row(height_units_.row(y), sand_.row(y), reptation_.row(y), sand_next_.row(y), g_.nx,
-                  g_.pitch, g_.cell_m, m_.reptation_k);
+  for (int y = -e; y < g_.ny + e; ++y)
+    reptation_row(height_units_.row(y) - e, sand_.row(y) - e, reptation_.row(y) - e,
+                  sand_next_.row(y) - e, g_.nx + 2 * e, g_.pitch, g_.cell_m, m_.reptation_k);
   sand_.swap(sand_next_);
 }
 

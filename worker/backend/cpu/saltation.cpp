@@ -157,7 +157,7 @@ void CpuBackend::saltation(std::int64_t step) {
     }
   }
   // Sand that left the tile re-enters on the opposite side (the torus).
-  fold_halo_periodic(landed_, reach);
+  ex_.sum(landed_, reach);
 
   // (3) Deposit, bounce, abrade; record the reptation strength.
   bool abraded = false;

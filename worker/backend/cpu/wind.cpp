@@ -99,29 +99,34 @@ void warp_row(const float* h, float* __restrict wx, float* __restrict wy, int nx
 void CpuBackend::wind(Vec2 a) {
   const CoarseGrid& c = m_.coarse;
   // One pass over the layers: heights in metres, and the exact block sums of
-  // the coarse grid (int64 per row of a block, 128 bits per block). This tile
-  // is the whole domain; in a tiled run the same integer sums are added
-  // across ranks.
+  // the coarse cells this tile owns (tiles are aligned to coarse cells):
+  // int64 per row of a block, 128 bits per block, so the mean of a coarse
+  // cell is the same whichever tile computes it.
+  const int cnx = g_.nx / c.cx, cny = g_.ny / c.cy;
+  std::vector<double> mine(static_cast<size_t>(cnx) * cny);
 #pragma omp parallel for num_threads(threads_) schedule(static)
-  for (int J = 0; J < c.ny; ++J) {
-    std::vector<total_t> sums(static_cast<size_t>(c.nx), 0);
+  for (int J = 0; J < cny; ++J) {
+    std::vector<total_t> sums(static_cast<size_t>(cnx), 0);
     for (int y = J * c.cy; y < (J + 1) * c.cy; ++y) {
       const units_t* b = bedrock_.row(y);
       const units_t* s = sand_.row(y);
       float* h = height_m_.row(y);
       for (int x = 0; x < g_.nx; ++x) h[x] = units_to_m(b[x] + s[x]);
-      for (int I = 0; I < c.nx; ++I) {
+      for (int I = 0; I < cnx; ++I) {
         units_t row = 0;
         for (int x = I * c.cx; x < (I + 1) * c.cx; ++x) row += b[x] + s[x];
         sums[static_cast<size_t>(I)] += row;
       }
     }
-    for (int I = 0; I < c.nx; ++I)
-      coarse_h_[static_cast<size_t>(J) * c.nx + I] =
-          static_cast<double>(sums[static_cast<size_t>(I)]) * kUnitM /
-          (static_cast<double>(c.cx) * c.cy);
+    for (int I = 0; I < cnx; ++I)
+      mine[static_cast<size_t>(J) * cnx + I] = static_cast<double>(sums[static_cast<size_t>(I)]) *
+                                               kUnitM / (static_cast<double>(c.cx) * c.cy);
   }
-  fill_halo_periodic(height_m_, m_.halo_shadow());
+  // The shadow march reads heights in the halo: the exchange runs while the
+  // coarse grid is gathered and smoothed and the wind warped (none of which
+  // reads ghosts).
+  ex_.begin_fill(height_m_, m_.halo_shadow());
+  ex_.gather_coarse(mine, coarse_h_);
   smoother_.gradients(coarse_h_, grad_x_, grad_y_);
 
   const float k = m_.venturi_k;
@@ -150,6 +155,7 @@ void CpuBackend::wind(Vec2 a) {
              axis_x_i1_.data(), axis_x_t_.data(), rows.data(), rows.data() + c.nx,
              rows.data() + 2 * c.nx, rows.data() + 3 * c.nx);
   }
+  ex_.finish_fill(height_m_, m_.halo_shadow());
 }
 
 }  // namespace erg::cpu

@@ -2,7 +2,9 @@
 // backend/cpu/avalanching.cpp: every iteration is two gather passes over
 // double-buffered heights. Pass 1 (avalanching::donor) gives each donor its
 // fraction and the total it sends; pass 2 (avalanching::inflow) has each
-// receiver recompute what its neighbours send it.
+// receiver recompute what its neighbours send it. As on the CPU, iteration k
+// runs on the tile grown by 2 (N - k) cells, inside the halo filled before
+// reptation, so no exchange is needed between iterations.
 //
 // The CPU stops early once nothing moved and nothing can move later. Here all
 // iterations run (no read-back per iteration): once nothing moves, every
@@ -20,10 +22,10 @@ namespace erg::gpu {
 namespace {
 
 // Level-0 heights in metres: b + s for sand, b for bedrock.
-__global__ void level0_kernel(TileGeom g, bool bedrock_only, const units_t* bedrock,
+__global__ void level0_kernel(TileGeom g, int grow, bool bedrock_only, const units_t* bedrock,
                               const units_t* sand, float* h) {
   int x, y;
-  if (!owned_cell(g, x, y)) return;
+  if (!grown_cell(g, grow, x, y)) return;
   const std::size_t i = g.at(x, y);
   h[i] = units_to_m(bedrock_only ? bedrock[i] : bedrock[i] + sand[i]);
 }
@@ -32,11 +34,11 @@ __global__ void level0_kernel(TileGeom g, bool bedrock_only, const units_t* bedr
 // its rare correction loop: the CPU's common path plus corrections give the
 // same values cell by cell). kBedrock: unlimited supply and one repose tangent.
 template <bool kBedrock>
-__global__ void donor_kernel(TileGeom g, Offsets off, const float* h, const float* tan_l,
+__global__ void donor_kernel(TileGeom g, int grow, Offsets off, const float* h, const float* tan_l,
                              float tan_l_const, const units_t* sand, float kc, float* frac,
                              units_t* out, int* moved) {
   int x, y;
-  if (!owned_cell(g, x, y)) return;
+  if (!grown_cell(g, grow, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
   float hn[8];
   for (int k = 0; k < 8; ++k) hn[k] = h[i + off.o[k]];
@@ -51,12 +53,12 @@ __global__ void donor_kernel(TileGeom g, Offsets off, const float* h, const floa
 // Pass 2: units each cell receives from its 8 neighbours, then the new layer
 // and its heights in the other height buffer.
 template <bool kBedrock>
-__global__ void inflow_kernel(TileGeom g, Offsets off, const float* h, const float* tan_l,
-                              float tan_l_const, const float* frac, const units_t* out,
-                              bool to_sand, units_t* target, units_t* sand, const units_t* bedrock,
-                              float* h_next) {
+__global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h,
+                              const float* tan_l, float tan_l_const, const float* frac,
+                              const units_t* out, bool to_sand, units_t* target, units_t* sand,
+                              const units_t* bedrock, float* h_next) {
   int x, y;
-  if (!owned_cell(g, x, y)) return;
+  if (!grown_cell(g, grow, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
   units_t in = 0;
   for (int k = 0; k < 8; ++k) {
@@ -85,36 +87,37 @@ __global__ void inflow_kernel(TileGeom g, Offsets off, const float* h, const flo
 int CudaBackend::avalanche(bool bedrock, int iterations) {
   if (iterations <= 0) return 0;
   const Offsets off = neighbour_offsets(g_.pitch);
-  const Launch l = owned_cells(g_);
   DeviceBuffer<units_t>& target = bedrock ? bedrock_ : sand_;
+  const int e = 2 * iterations;
 
-  ERG_LAUNCH(level0_kernel, l.grid, l.block, g_, bedrock, bedrock_.get(), sand_.get(), h_a_.get());
-  fill_halo_periodic(h_a_.get(), g_, 1);
+  const Launch l0 = grown_cells(g_, e);
+  ERG_LAUNCH(level0_kernel, l0.grid, l0.block, g_, e, bedrock, bedrock_.get(), sand_.get(),
+             h_a_.get());
   ERG_CUDA_CHECK(
       cudaMemsetAsync(moved_.get(), 0, sizeof(int) * static_cast<std::size_t>(iterations)));
 
   const float kc_full = m_.kc;
   for (int it = 1; it <= iterations; ++it) {
     const float kc = avalanching::kc_for(it, iterations, kc_full, m_.kc_damped);
+    const int grow1 = 2 * (iterations - it) + 1, grow2 = grow1 - 1;  // pass 1, pass 2
+    const Launch l1 = grown_cells(g_, grow1), l2 = grown_cells(g_, grow2);
     int* moved = moved_.get() + (it - 1);
     if (bedrock)
-      ERG_LAUNCH(donor_kernel<true>, l.grid, l.block, g_, off, h_a_.get(), nullptr,
+      ERG_LAUNCH(donor_kernel<true>, l1.grid, l1.block, g_, grow1, off, h_a_.get(), nullptr,
                  m_.tan_l_bedrock, nullptr, kc, frac_.get(), out_.get(), moved);
     else
-      ERG_LAUNCH(donor_kernel<false>, l.grid, l.block, g_, off, h_a_.get(), tan_l_.get(), 0.0f,
-                 sand_.get(), kc, frac_.get(), out_.get(), moved);
-    fill_halo_periodic(frac_.get(), g_, 1);
+      ERG_LAUNCH(donor_kernel<false>, l1.grid, l1.block, g_, grow1, off, h_a_.get(), tan_l_.get(),
+                 0.0f, sand_.get(), kc, frac_.get(), out_.get(), moved);
 
     if (bedrock)
-      ERG_LAUNCH(inflow_kernel<true>, l.grid, l.block, g_, off, h_a_.get(), nullptr,
+      ERG_LAUNCH(inflow_kernel<true>, l2.grid, l2.block, g_, grow2, off, h_a_.get(), nullptr,
                  m_.tan_l_bedrock, frac_.get(), out_.get(), m_.bedrock_to_sand, target.get(),
                  sand_.get(), bedrock_.get(), h_b_.get());
     else
-      ERG_LAUNCH(inflow_kernel<false>, l.grid, l.block, g_, off, h_a_.get(), tan_l_.get(), 0.0f,
-                 frac_.get(), out_.get(), false, target.get(), sand_.get(), bedrock_.get(),
+      ERG_LAUNCH(inflow_kernel<false>, l2.grid, l2.block, g_, grow2, off, h_a_.get(), tan_l_.get(),
+                 0.0f, frac_.get(), out_.get(), false, target.get(), sand_.get(), bedrock_.get(),
                  h_b_.get());
     h_a_.swap(h_b_);
-    fill_halo_periodic(h_a_.get(), g_, 1);
   }
 
   std::vector<int> flags(static_cast<std::size_t>(iterations));

@@ -6,6 +6,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "backend/cuda/cuda_backend.h"
 #include "stages/events.h"
@@ -242,7 +243,11 @@ __global__ void pack_wind_kernel(TileGeom g, const float* wx, const float* wy, f
 
 // ---- the backend ------------------------------------------------------------------
 
-CudaBackend::CudaBackend(const Model& model) : m_(model), g_(model.tile) {
+CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
+    : m_(model), g_(model.tile), ex_(ex) {
+  int devices = 0;
+  ERG_CUDA_CHECK(cudaGetDeviceCount(&devices));
+  ERG_CUDA_CHECK(cudaSetDevice(devices > 0 ? local_rank % devices : 0));
   // One device per process for now (later: local rank % device count).
   ERG_CUDA_CHECK(cudaSetDevice(0));
 
@@ -264,6 +269,7 @@ CudaBackend::CudaBackend(const Model& model) : m_(model), g_(model.tile) {
   h_b_.reset(n);
   frac_.reset(n);
   out_.reset(n);
+  coarse_mine_.reset(static_cast<std::size_t>(g_.nx / m_.coarse.cx) * (g_.ny / m_.coarse.cy));
   moved_.reset(
       static_cast<std::size_t>(std::max({m_.avalanche_iterations, m_.bedrock_iterations, 1})));
 
@@ -355,7 +361,8 @@ void CudaBackend::update_repose() {
   const Launch l = owned_cells(g_);
   ERG_LAUNCH(repose_kernel, l.grid, l.block, g_, vegetation_.get(), tan_l_.get(), m_.tan_l_sand,
              m_.tan_l_vegetated);
-  fill_halo_periodic(tan_l_.get(), g_, Model::kHaloStencil);
+  // Avalanching reads the tangents inside its whole halo.
+  fill(tan_l_, m_.halo_avalanche() + 1);
 }
 
 void CudaBackend::fetch_rows(int count) {
@@ -373,14 +380,18 @@ total_t CudaBackend::apply_sand_brush(const events::Brush& b) {
   ERG_LAUNCH(sand_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, sand_.get(),
              row_sums_.get());
   fetch_rows(g_.ny);
-  return sum_rows(0, g_.ny);
+  std::vector<total_t> all{sum_rows(0, g_.ny)};
+  ex_.sum_exact(all);
+  return all[0];
 }
 
 total_t CudaBackend::apply_bedrock_brush(const events::Brush& b) {
   ERG_LAUNCH(bedrock_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, bedrock_.get(),
              row_sums_.get());
   fetch_rows(g_.ny);
-  return sum_rows(0, g_.ny);
+  std::vector<total_t> all{sum_rows(0, g_.ny)};
+  ex_.sum_exact(all);
+  return all[0];
 }
 
 void CudaBackend::set_vegetation(const events::Region& r) {
@@ -393,11 +404,38 @@ Totals CudaBackend::totals() {
   ERG_LAUNCH(totals_kernel, dim3(g_.ny), dim3(kRowThreads), g_, sand_.get(), airborne_.get(),
              bedrock_.get(), row_sums_.get());
   fetch_rows(3 * g_.ny);
-  Totals t;
-  t.sand = sum_rows(0, g_.ny);
-  t.airborne = sum_rows(g_.ny, g_.ny);
-  t.bedrock = sum_rows(2 * g_.ny, g_.ny);
-  return t;
+  std::vector<total_t> all{sum_rows(0, g_.ny), sum_rows(g_.ny, g_.ny), sum_rows(2 * g_.ny, g_.ny)};
+  ex_.sum_exact(all);
+  return {all[0], all[1], all[2]};
+}
+
+template <class T>
+void CudaBackend::fill(DeviceBuffer<T>& f, int w) {
+  if (ex_.tiles() == 1) {
+    fill_halo_periodic(f.get(), g_, w);
+    return;
+  }
+  Field<T>& host = [this]() -> Field<T>& {
+    if constexpr (std::is_same_v<T, units_t>) return stage_units_;
+    else return stage_float_;
+  }();
+  if (host.size() != f.size()) host.reset(g_);
+  ERG_CUDA_CHECK(cudaMemcpy(host.data(), f.get(), f.bytes(), cudaMemcpyDeviceToHost));
+  ex_.fill(host, w);
+  ERG_CUDA_CHECK(cudaMemcpy(f.get(), host.data(), f.bytes(), cudaMemcpyHostToDevice));
+}
+template void CudaBackend::fill(DeviceBuffer<units_t>&, int);
+template void CudaBackend::fill(DeviceBuffer<float>&, int);
+
+void CudaBackend::sum(DeviceBuffer<units_t>& f, int w) {
+  if (ex_.tiles() == 1) {
+    fold_halo_periodic(f.get(), g_, w);
+    return;
+  }
+  if (stage_units_.size() != f.size()) stage_units_.reset(g_);
+  ERG_CUDA_CHECK(cudaMemcpy(stage_units_.data(), f.get(), f.bytes(), cudaMemcpyDeviceToHost));
+  ex_.sum(stage_units_, w);
+  ERG_CUDA_CHECK(cudaMemcpy(f.get(), stage_units_.data(), f.bytes(), cudaMemcpyHostToDevice));
 }
 
 void CudaBackend::synchronize() {
@@ -408,8 +446,8 @@ void CudaBackend::synchronize() {
 
 // ---- entry points for backend/backend.cpp ----------------------------------------
 
-std::unique_ptr<Backend> make_cuda_backend(const Model& model) {
-  return std::make_unique<gpu::CudaBackend>(model);
+std::unique_ptr<Backend> make_cuda_backend(const Model& model, dist::Exchange& ex, int local_rank) {
+  return std::make_unique<gpu::CudaBackend>(model, ex, local_rank);
 }
 
 bool cuda_runtime_has_device() {

@@ -110,6 +110,18 @@ inline constexpr int kThreads1D = 256;
 struct Launch {
   dim3 grid, block;
 };
+// One thread per cell of the tile grown by `grow` cells on every side
+// (ghost-zone expansion: reptation and avalanching run on the halo too).
+inline Launch grown_cells(const TileGeom& g, int grow) {
+  return {dim3(static_cast<unsigned>((g.nx + 2 * grow + kBlockX - 1) / kBlockX),
+               static_cast<unsigned>((g.ny + 2 * grow + kBlockY - 1) / kBlockY)),
+          dim3(kBlockX, kBlockY)};
+}
+__device__ __forceinline__ bool grown_cell(const TileGeom& g, int grow, int& x, int& y) {
+  x = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x) - grow;
+  y = static_cast<int>(blockIdx.y * blockDim.y + threadIdx.y) - grow;
+  return x < g.nx + grow && y < g.ny + grow;
+}
 // One thread per owned cell.
 inline Launch owned_cells(const TileGeom& g) {
   return {dim3(static_cast<unsigned>((g.nx + kBlockX - 1) / kBlockX),
@@ -175,7 +187,10 @@ void fold_halo_periodic(units_t* f, const TileGeom& g, int width);
 // ---- the backend --------------------------------------------------------------
 class CudaBackend final : public Backend {
  public:
-  explicit CudaBackend(const Model& model);
+  // `ex` (which must outlive the backend) fills ghosts and sums across tiles;
+  // with several tiles, ghosts go through host memory (the Debian Open MPI
+  // is not CUDA-aware). The GPU used is local_rank % devices.
+  CudaBackend(const Model& model, dist::Exchange& ex, int local_rank);
   std::string name() const override { return "cuda"; }
   void upload(const TileState& s) override;
   void download(TileState& s) override;
@@ -197,6 +212,11 @@ class CudaBackend final : public Backend {
 
  private:
   void update_repose();                         // tan_l from vegetation
+  // Ghosts of a device field: on the device when this tile is the whole
+  // torus, else staged through host memory and the exchange.
+  template <class T>
+  void fill(DeviceBuffer<T>& f, int w);
+  void sum(DeviceBuffer<units_t>& f, int w);
   int avalanche(bool bedrock, int iterations);  // avalanching.cu
   void coarse_gradients();                      // wind.cu: coarse_h_ -> grad_x_, grad_y_
   // Per-row partial sums: copy the first `count` of row_sums_ to the host,
@@ -206,6 +226,9 @@ class CudaBackend final : public Backend {
 
   Model m_;
   TileGeom g_;
+  dist::Exchange& ex_;
+  Field<units_t> stage_units_;  // host staging of ghosts (several tiles)
+  Field<float> stage_float_;
   // exact state (padded, TileGeom::at layout)
   DeviceBuffer<units_t> bedrock_, sand_, airborne_;
   DeviceBuffer<float> vegetation_, resistance_;
@@ -219,6 +242,7 @@ class CudaBackend final : public Backend {
   DeviceBuffer<units_t> sand_next_;
   DeviceBuffer<float> h_a_, h_b_, frac_;
   DeviceBuffer<units_t> out_;
+  DeviceBuffer<double> coarse_mine_;  // this tile's coarse cells
   DeviceBuffer<int> moved_;  // one flag per avalanching iteration
   // wind warping on the coarse grid
   DeviceBuffer<double> coarse_h_;              // [ny][nx] real input/output of the FFTs
@@ -237,6 +261,6 @@ class CudaBackend final : public Backend {
 
 namespace erg {
 // Entry points for backend/backend.cpp (cuda_backend.cu).
-std::unique_ptr<Backend> make_cuda_backend(const Model& model);
+std::unique_ptr<Backend> make_cuda_backend(const Model& model, dist::Exchange& ex, int local_rank);
 bool cuda_runtime_has_device();
 }  // namespace erg

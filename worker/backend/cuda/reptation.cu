@@ -8,10 +8,11 @@ namespace erg::gpu {
 
 namespace {
 
-__global__ void reptation_kernel(TileGeom g, Offsets off, float k_r, const units_t* bedrock,
-                                 const units_t* sand, const float* strength, units_t* next) {
+__global__ void reptation_kernel(TileGeom g, int grow, Offsets off, float k_r,
+                                 const units_t* bedrock, const units_t* sand,
+                                 const float* strength, units_t* next) {
   int x, y;
-  if (!owned_cell(g, x, y)) return;
+  if (!grown_cell(g, grow, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
   const float l = g.cell_m;
   const units_t hi = bedrock[i] + sand[i];
@@ -29,13 +30,18 @@ __global__ void reptation_kernel(TileGeom g, Offsets off, float k_r, const units
 }  // namespace
 
 void CudaBackend::reptation() {
+  // One exchange for reptation and avalanching together (as on the CPU):
+  // the layers and impact strengths with the avalanching halo plus one;
+  // reptation runs on the tile grown by the avalanching halo.
+  const int w = m_.halo_avalanche() + 1;
+  fill(sand_, w);
+  fill(bedrock_, w);
   if (m_.reptation_k <= 0.0f) return;
-  fill_halo_periodic(bedrock_.get(), g_, Model::kHaloStencil);
-  fill_halo_periodic(sand_.get(), g_, Model::kHaloStencil);
-  fill_halo_periodic(reptation_.get(), g_, Model::kHaloStencil);
-  const Launch l = owned_cells(g_);
-  ERG_LAUNCH(reptation_kernel, l.grid, l.block, g_, neighbour_offsets(g_.pitch), m_.reptation_k,
-             bedrock_.get(), sand_.get(), reptation_.get(), sand_next_.get());
+  fill(reptation_, w);
+  const int grow = w - 1;
+  const Launch l = grown_cells(g_, grow);
+  ERG_LAUNCH(reptation_kernel, l.grid, l.block, g_, grow, neighbour_offsets(g_.pitch),
+             m_.reptation_k, bedrock_.get(), sand_.get(), reptation_.get(), sand_next_.get());
   sand_.swap(sand_next_);
 }
 

@@ -97,7 +97,7 @@ void CudaBackend::saltation(std::int64_t step) {
   ERG_LAUNCH(scatter_kernel, l.grid, l.block, g_, p, seed, ustep, airborne_.get(), wind_x_.get(),
              wind_y_.get(), landed_.get());
   // Sand that left the tile re-enters on the opposite side (the torus).
-  fold_halo_periodic(landed_.get(), g_, m_.halo_saltation());
+  sum(landed_, m_.halo_saltation());
 
   ERG_LAUNCH(impact_kernel, l.grid, l.block, g_, p, seed, ustep, landed_.get(), sand_.get(),
              bedrock_.get(), airborne_.get(), shadow_.get(), vegetation_.get(), resistance_.get(),

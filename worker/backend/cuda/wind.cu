@@ -2,6 +2,8 @@
 // (stages/venturi.h, stages/wind_warping.h), as backend/cpu/wind.cpp:
 // heights in metres, exact coarse block sums, spectral Gaussian gradients on
 // the coarse grid (cuFFT, double), then the per-cell wind.
+#include <vector>
+
 #include "backend/cuda/cuda_backend.h"
 #include "stages/venturi.h"
 #include "stages/wind_warping.h"
@@ -20,12 +22,13 @@ __global__ void heights_kernel(TileGeom g, const units_t* bedrock, const units_t
   h[i] = units_to_m(bedrock[i] + sand[i]);
 }
 
-// One block per coarse cell (I, J), blocks in row-major order: the exact sum of b + s over its fine
+// One block per coarse cell (I, J) of this tile (tiles are aligned to coarse
+// cells), blocks in row-major order: the exact sum of b + s over its fine
 // cells (128-bit, as on the CPU), then the mean height in metres.
-__global__ void coarse_sum_kernel(TileGeom g, CoarseGrid c, const units_t* bedrock,
+__global__ void coarse_sum_kernel(TileGeom g, CoarseGrid c, int tile_cnx, const units_t* bedrock,
                                   const units_t* sand, double* coarse_h) {
   __shared__ total_t red[kCoarseThreads];
-  const int I = static_cast<int>(blockIdx.x % c.nx), J = static_cast<int>(blockIdx.x / c.nx);
+  const int I = static_cast<int>(blockIdx.x % tile_cnx), J = static_cast<int>(blockIdx.x / tile_cnx);
   const long long cells = static_cast<long long>(c.cx) * c.cy;
   total_t sum = 0;
   for (long long t = threadIdx.x; t < cells; t += kCoarseThreads) {
@@ -36,7 +39,7 @@ __global__ void coarse_sum_kernel(TileGeom g, CoarseGrid c, const units_t* bedro
   }
   sum = block_sum(sum, red);
   if (threadIdx.x == 0)
-    coarse_h[static_cast<std::size_t>(J) * c.nx + I] =
+    coarse_h[static_cast<std::size_t>(J) * tile_cnx + I] =
         static_cast<double>(sum) * kUnitM / (static_cast<double>(c.cx) * c.cy);
 }
 
@@ -117,12 +120,19 @@ void CudaBackend::wind(Vec2 a) {
   // Heights in metres (owned + the ghosts the shadow march reads).
   ERG_LAUNCH(heights_kernel, cells.grid, cells.block, g_, bedrock_.get(), sand_.get(),
              height_m_.get());
-  fill_halo_periodic(height_m_.get(), g_, m_.halo_shadow());
+  fill(height_m_, m_.halo_shadow());
 
-  // Exact block sums into the coarse grid. This tile is the whole domain (as
-  // on the CPU); in a tiled run the same integer sums are added across ranks.
-  ERG_LAUNCH(coarse_sum_kernel, dim3(static_cast<unsigned>(c.nx * c.ny)), dim3(kCoarseThreads), g_,
-             c, bedrock_.get(), sand_.get(), coarse_h_.get());
+  // Exact block sums of this tile's coarse cells; every tile gets the whole
+  // coarse grid (the same integer sums whatever the tiling).
+  const int tcnx = g_.nx / c.cx, tcny = g_.ny / c.cy;
+  ERG_LAUNCH(coarse_sum_kernel, dim3(static_cast<unsigned>(tcnx * tcny)), dim3(kCoarseThreads), g_,
+             c, tcnx, bedrock_.get(), sand_.get(), coarse_mine_.get());
+  std::vector<double> mine(coarse_mine_.size()), all;
+  ERG_CUDA_CHECK(
+      cudaMemcpy(mine.data(), coarse_mine_.get(), coarse_mine_.bytes(), cudaMemcpyDeviceToHost));
+  ex_.gather_coarse(mine, all);
+  ERG_CUDA_CHECK(
+      cudaMemcpy(coarse_h_.get(), all.data(), coarse_h_.bytes(), cudaMemcpyHostToDevice));
   coarse_gradients();
 
   ERG_LAUNCH(wind_kernel, cells.grid, cells.block, g_, c, a, m_.venturi_k, m_.warp, height_m_.get(),

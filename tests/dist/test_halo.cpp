@@ -1,0 +1,524 @@
+// HaloExchanger under mpirun (1 to 4 ranks): every tile's ghosts after fill()
+// and owned cells after sum() must equal what the single-process periodic
+// wrap gives on the whole domain, here computed from the global picture on
+// every rank.
+#include <gtest/gtest.h>
+#include <mpi.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "dist/decomposition.h"
+#include "dist/halo.h"
+
+namespace erg::dist {
+namespace {
+
+int world_size() {
+  int n = 0;
+  MPI_Comm_size(MPI_COMM_WORLD, &n);
+  return n;
+}
+
+int world_rank() {
+  int r = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &r);
+  return r;
+}
+
+// Every test ends by agreeing on failure: a test that failed only on another
+// rank fails on this one too (so rank 0's report is the verdict).
+class Dist : public ::testing::Test {
+ protected:
+  void TearDown() override {
+    int mine = HasFailure() ? 1 : 0, any = 0;
+    MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    if (any && !mine) ADD_FAILURE() << "failed on another rank (see its [rank N] lines)";
+  }
+};
+
+// ---- the tile of this rank --------------------------------------------------
+
+struct Config {
+  const char* name;
+  int gnx, gny;
+  int px, py;  // 0, 0: decompose() chooses; -1: the number of ranks
+  int halo;
+  int ranks;  // the only rank count it runs with (0: any)
+};
+
+std::string config_name(const ::testing::TestParamInfo<Config>& info) {
+  return info.param.name;
+}
+
+// A periodic Cartesian communicator over the decomposition and this rank's
+// tile.
+class TileSetup {
+ public:
+  TileSetup(int gnx, int gny, int px, int py, int halo) {
+    const int n = world_size();
+    if (px < 0) px = n;
+    if (py < 0) py = n;
+    d = decompose(gnx, gny, n, 1, px, py);
+    int dims[2] = {d.px, d.py}, periods[2] = {1, 1};
+    MPI_Cart_create(MPI_COMM_WORLD, 2, dims, periods, 0, &cart);
+    int rank = 0, coords[2] = {0, 0};
+    MPI_Comm_rank(cart, &rank);
+    MPI_Cart_coords(cart, rank, 2, coords);
+    i = coords[0];
+    j = coords[1];
+    g = tile(i, j, halo);
+  }
+  explicit TileSetup(const Config& c) : TileSetup(c.gnx, c.gny, c.px, c.py, c.halo) {}
+  ~TileSetup() { MPI_Comm_free(&cart); }
+  TileSetup(const TileSetup&) = delete;
+  TileSetup& operator=(const TileSetup&) = delete;
+
+  TileGeom tile(int ti, int tj, int halo) const {
+    TileGeom t;
+    t.nx = d.nx(ti);
+    t.ny = d.ny(tj);
+    t.halo = halo;
+    t.pitch = padded_pitch(t.nx, halo);
+    t.x0 = d.x0(ti);
+    t.y0 = d.y0(tj);
+    t.gnx = d.gnx;
+    t.gny = d.gny;
+    return t;
+  }
+  // The widest exchange every rank can serve.
+  int max_width() const { return std::min({g.halo, d.min_tile_x(), d.min_tile_y()}); }
+
+  Decomposition d;
+  MPI_Comm cart = MPI_COMM_NULL;
+  int i = 0, j = 0;
+  TileGeom g;
+};
+
+// ---- values -----------------------------------------------------------------
+
+std::uint64_t mix(std::uint64_t z) {  // splitmix64 finaliser
+  z += 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+// Distinct per global cell (idx < 2^20), exact only as the type itself:
+// int64 near +-2^62 (not representable in double), floats off the integers.
+template <class T>
+T cell_value(std::uint64_t idx);
+template <>
+std::int64_t cell_value(std::uint64_t idx) {
+  const std::int64_t m = (std::int64_t{1} << 62) + static_cast<std::int64_t>(idx) * 3 + 1;
+  return idx % 2 ? -m : m;
+}
+template <>
+float cell_value(std::uint64_t idx) {
+  return (idx % 2 ? -1.0f : 1.0f) * (static_cast<float>(idx) + 0.375f);
+}
+template <>
+double cell_value(std::uint64_t idx) {
+  return (idx % 2 ? -1.0 : 1.0) * (static_cast<double>(idx) / 3.0 + 1e6);
+}
+
+// Summands whose sums (at most 9 per cell) are exact in T: int64 up to
+// 2^59 + 2^20 in magnitude, floats integers and halves below 2^15.
+template <class T>
+T summand(std::uint64_t key);
+template <>
+std::int64_t summand(std::uint64_t key) {
+  const std::uint64_t h = mix(key);
+  const std::int64_t m = (std::int64_t{1} << 59) + static_cast<std::int64_t>(h >> 44);
+  return h & 1 ? -m : m;
+}
+template <>
+float summand(std::uint64_t key) {
+  const std::uint64_t h = mix(key);
+  return static_cast<float>(static_cast<int>(h >> 50) - 8192) + (h & 1 ? 0.5f : 0.0f);
+}
+template <>
+double summand(std::uint64_t key) {
+  const std::uint64_t h = mix(key);
+  return static_cast<double>(static_cast<std::int64_t>(h >> 34) - (std::int64_t{1} << 29)) +
+         (h & 1 ? 0.25 : 0.0);
+}
+
+// Keys of the summands: owned cells by global index, ghosts by tile and
+// local position (every tile's ghost of a cell is a different summand).
+std::uint64_t owned_key(std::uint64_t idx) {
+  return idx * 2 + 1;
+}
+std::uint64_t ghost_key(int ti, int tj, int x, int y) {
+  return ((((static_cast<std::uint64_t>(ti) * 64 + tj) * 1024 + (x + 512)) * 1024 + (y + 512)) * 2);
+}
+
+// Never one of the values above.
+template <class T>
+T marker() {
+  return static_cast<T>(7);
+}
+
+template <class T>
+bool same(T a, T b) {
+  return std::memcmp(&a, &b, sizeof(T)) == 0;
+}
+
+template <class T>
+std::string show(T v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+// Counts mismatches and keeps the first few for the report.
+class Mismatches {
+ public:
+  template <class T>
+  void check(const char* what, int x, int y, T got, T want) {
+    if (same(got, want)) return;
+    if (++count_ <= 5)
+      text_ += std::string(what) + " (" + std::to_string(x) + ", " + std::to_string(y) + "): got " +
+               show(got) + ", want " + show(want) + "\n";
+  }
+  long count() const { return count_; }
+  const std::string& text() const { return text_; }
+
+ private:
+  long count_ = 0;
+  std::string text_;
+};
+
+// The whole stored tile, padding included: x from -halo to pitch - halo.
+template <class F>
+void for_storage(const TileGeom& g, F f) {
+  for (int y = -g.halo; y < g.ny + g.halo; ++y)
+    for (int x = -g.halo; x < g.pitch - g.halo; ++x) f(x, y);
+}
+
+bool owned(const TileGeom& g, int x, int y) {
+  return x >= 0 && x < g.nx && y >= 0 && y < g.ny;
+}
+bool in_ring(const TileGeom& g, int w, int x, int y) {
+  return x >= -w && x < g.nx + w && y >= -w && y < g.ny + w;
+}
+
+// ---- fill ---------------------------------------------------------------------
+
+// Owned cells from the global field, every other stored cell the marker.
+template <class T>
+Field<T> fill_input(const TileGeom& g) {
+  Field<T> f(g, marker<T>());
+  for (int y = 0; y < g.ny; ++y)
+    for (int x = 0; x < g.nx; ++x) f(x, y) = cell_value<T>(g.global_index(x, y));
+  return f;
+}
+
+// Ghosts within w hold the wrapped global cell; everything else unchanged.
+template <class T>
+void expect_filled(const Field<T>& f, int w, const std::string& where) {
+  const TileGeom& g = f.geom();
+  Mismatches m;
+  for_storage(g, [&](int x, int y) {
+    const bool ghost = !owned(g, x, y) && in_ring(g, w, x, y);
+    const T want = owned(g, x, y) || ghost ? cell_value<T>(g.global_index(x, y)) : marker<T>();
+    m.check(ghost ? "ghost" : owned(g, x, y) ? "owned" : "untouched", x, y, f(x, y), want);
+  });
+  EXPECT_EQ(m.count(), 0) << where << ", w " << w << ":\n" << m.text();
+}
+
+template <class T>
+void check_fill(HaloExchanger& hx, const TileSetup& s, bool split) {
+  for (int w = 0; w <= std::min(8, s.max_width()); ++w) {
+    Field<T> f = fill_input<T>(s.g);
+    if (split) {
+      hx.begin_fill(f, w);
+      // Interior work that does not read the ghosts may run here.
+      Field<T> other = fill_input<T>(s.g);
+      other(0, 0) = marker<T>();
+      hx.finish_fill(f, w);
+    } else {
+      hx.fill(f, w);
+    }
+    expect_filled(f, w,
+                  std::string(split ? "begin/finish_fill" : "fill") + " tile (" +
+                      std::to_string(s.i) + ", " + std::to_string(s.j) + ")");
+  }
+}
+
+// ---- sum ----------------------------------------------------------------------
+
+// Owned cells and ghosts within w: distinct summands; the ghosts beyond w
+// and the padding: the marker (sum() must leave them alone).
+template <class T>
+Field<T> sum_input(const TileSetup& s, int ti, int tj, int w) {
+  const TileGeom g = s.tile(ti, tj, s.g.halo);
+  Field<T> f(g, marker<T>());
+  for_storage(g, [&](int x, int y) {
+    if (owned(g, x, y))
+      f(x, y) = summand<T>(owned_key(g.global_index(x, y)));
+    else if (in_ring(g, w, x, y))
+      f(x, y) = summand<T>(ghost_key(ti, tj, x, y));
+  });
+  return f;
+}
+
+// The whole domain after the single-process fold: each owned cell plus
+// every ghost of every tile that wraps onto it.
+template <class T>
+std::vector<T> folded(const TileSetup& s, int w) {
+  const Decomposition& d = s.d;
+  std::vector<T> all(static_cast<std::size_t>(d.gnx) * d.gny);
+  for (int gy = 0; gy < d.gny; ++gy)
+    for (int gx = 0; gx < d.gnx; ++gx) {
+      const std::uint64_t idx = static_cast<std::uint64_t>(gy) * d.gnx + gx;
+      all[idx] = summand<T>(owned_key(idx));
+    }
+  for (int tj = 0; tj < d.py; ++tj)
+    for (int ti = 0; ti < d.px; ++ti) {
+      const TileGeom g = s.tile(ti, tj, s.g.halo);
+      for (int y = -w; y < g.ny + w; ++y)
+        for (int x = -w; x < g.nx + w; ++x)
+          if (!owned(g, x, y)) all[g.global_index(x, y)] += summand<T>(ghost_key(ti, tj, x, y));
+    }
+  return all;
+}
+
+template <class T>
+void check_sum(HaloExchanger& hx, const TileSetup& s) {
+  for (int w = 0; w <= std::min(8, s.max_width()); ++w) {
+    Field<T> f = sum_input<T>(s, s.i, s.j, w);
+    hx.sum(f, w);
+    const std::vector<T> all = folded<T>(s, w);
+    const TileGeom& g = s.g;
+    Mismatches m;
+    for_storage(g, [&](int x, int y) {
+      if (owned(g, x, y))
+        m.check("owned", x, y, f(x, y), all[g.global_index(x, y)]);
+      else if (in_ring(g, w, x, y))
+        m.check("ghost", x, y, f(x, y), T{});
+      else
+        m.check("untouched", x, y, f(x, y), marker<T>());
+    });
+    EXPECT_EQ(m.count(), 0) << "sum tile (" << s.i << ", " << s.j << "), w " << w << ":\n"
+                            << m.text();
+  }
+}
+
+// ---- the tests, for each configuration --------------------------------------
+
+class Halo : public Dist, public ::testing::WithParamInterface<Config> {
+ protected:
+  void SetUp() override {
+    if (GetParam().ranks != 0 && GetParam().ranks != world_size())
+      GTEST_SKIP() << "runs with " << GetParam().ranks << " ranks";
+  }
+};
+
+TEST_P(Halo, NeighboursAreTheCartesianOnes) {
+  const TileSetup s(GetParam());
+  const HaloExchanger hx(s.cart, s.g);
+  const auto rank_at = [&](int i, int j) {
+    int coords[2] = {(i + s.d.px) % s.d.px, (j + s.d.py) % s.d.py}, r = -1;
+    MPI_Cart_rank(s.cart, coords, &r);
+    return r;
+  };
+  EXPECT_EQ(hx.left(), rank_at(s.i - 1, s.j));
+  EXPECT_EQ(hx.right(), rank_at(s.i + 1, s.j));
+  EXPECT_EQ(hx.down(), rank_at(s.i, s.j - 1));
+  EXPECT_EQ(hx.up(), rank_at(s.i, s.j + 1));
+}
+
+TEST_P(Halo, FillMatchesPeriodicWrap) {
+  const TileSetup s(GetParam());
+  HaloExchanger hx(s.cart, s.g);
+  check_fill<std::int64_t>(hx, s, false);
+  check_fill<float>(hx, s, false);
+  check_fill<double>(hx, s, false);
+}
+
+TEST_P(Halo, SplitFillEqualsFill) {
+  const TileSetup s(GetParam());
+  HaloExchanger hx(s.cart, s.g);
+  check_fill<std::int64_t>(hx, s, true);
+  check_fill<float>(hx, s, true);
+  check_fill<double>(hx, s, true);
+  // Bit for bit the same storage as fill().
+  const int w = s.max_width();
+  Field<float> a = fill_input<float>(s.g), b = a;
+  hx.fill(a, w);
+  hx.begin_fill(b, w);
+  hx.finish_fill(b, w);
+  EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0);
+}
+
+TEST_P(Halo, SumMatchesPeriodicFold) {
+  const TileSetup s(GetParam());
+  HaloExchanger hx(s.cart, s.g);
+  check_sum<std::int64_t>(hx, s);
+  check_sum<float>(hx, s);
+  check_sum<double>(hx, s);
+}
+
+// fill() after sum() on the same field: the folded owned values reach every
+// ghost (the pattern of a scatter step followed by a stencil).
+TEST_P(Halo, SumThenFill) {
+  const TileSetup s(GetParam());
+  HaloExchanger hx(s.cart, s.g);
+  const int w = s.max_width();
+  Field<std::int64_t> f = sum_input<std::int64_t>(s, s.i, s.j, w);
+  hx.sum(f, w);
+  hx.fill(f, w);
+  const std::vector<std::int64_t> all = folded<std::int64_t>(s, w);
+  Mismatches m;
+  for (int y = -w; y < s.g.ny + w; ++y)
+    for (int x = -w; x < s.g.nx + w; ++x)
+      m.check("cell", x, y, f(x, y), all[s.g.global_index(x, y)]);
+  EXPECT_EQ(m.count(), 0) << m.text();
+}
+
+// Each exchange sends one message per direction (two per phase), also to a
+// rank that is its own neighbour: 4 per fill or sum.
+TEST_P(Halo, Stats) {
+  const TileSetup s(GetParam());
+  HaloExchanger hx(s.cart, s.g);
+  EXPECT_EQ(hx.stats().messages, 0);
+  EXPECT_EQ(hx.stats().bytes, 0);
+  const int w = s.max_width();
+  const long long cells = 2LL * w * s.g.ny + 2LL * w * (s.g.nx + 2 * w);
+  Field<std::int64_t> a = fill_input<std::int64_t>(s.g);
+  hx.fill(a, w);
+  EXPECT_EQ(hx.stats().messages, 4);
+  EXPECT_EQ(hx.stats().bytes, cells * 8);
+  Field<float> b = fill_input<float>(s.g);
+  hx.begin_fill(b, w);
+  EXPECT_EQ(hx.stats().messages, 6);  // the x phase is posted
+  hx.finish_fill(b, w);
+  EXPECT_EQ(hx.stats().messages, 8);
+  EXPECT_EQ(hx.stats().bytes, cells * 12);
+  hx.sum(a, w);
+  EXPECT_EQ(hx.stats().messages, 12);
+  EXPECT_EQ(hx.stats().bytes, cells * 20);
+  hx.reset_stats();
+  EXPECT_EQ(hx.stats().messages, 0);
+  EXPECT_EQ(hx.stats().bytes, 0);
+  // Width 0 sends nothing.
+  hx.fill(a, 0);
+  hx.sum(a, 0);
+  hx.begin_fill(b, 0);
+  hx.finish_fill(b, 0);
+  EXPECT_EQ(hx.stats().messages, 0);
+}
+
+TEST_P(Halo, InvalidWidthsThrowOnEveryRank) {
+  const TileSetup s(GetParam());
+  HaloExchanger hx(s.cart, s.g);
+  Field<double> f = fill_input<double>(s.g);
+  const int too_wide = s.max_width() + 1;
+  for (const int w : {-1, too_wide, s.g.halo + 1}) {
+    EXPECT_THROW(hx.fill(f, w), std::invalid_argument) << "w " << w;
+    EXPECT_THROW(hx.sum(f, w), std::invalid_argument) << "w " << w;
+    EXPECT_THROW(hx.begin_fill(f, w), std::invalid_argument) << "w " << w;
+  }
+  // The message says why.
+  try {
+    hx.fill(f, too_wide);
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("width " + std::to_string(too_wide)), std::string::npos)
+        << e.what();
+  }
+  // A field of another geometry.
+  TileGeom other = s.g;
+  other.nx += 1;
+  other.pitch = padded_pitch(other.nx, other.halo);
+  Field<double> wrong(other);
+  EXPECT_THROW(hx.fill(wrong, 1), std::invalid_argument);
+  // Misuse of the split fill.
+  EXPECT_THROW(hx.finish_fill(f, 1), std::logic_error);
+  hx.begin_fill(f, 1);
+  EXPECT_THROW(hx.begin_fill(f, 1), std::logic_error);
+  EXPECT_THROW(hx.sum(f, 1), std::logic_error);
+  hx.finish_fill(f, 1);
+  // Nothing is left in flight: a valid exchange still works.
+  f = fill_input<double>(s.g);
+  hx.fill(f, s.max_width());
+  expect_filled(f, s.max_width(), "fill after errors");
+}
+
+const Config kConfigs[] = {
+    {"auto_37x23", 37, 23, 0, 0, 8, 0},       {"auto_50x31", 50, 31, 0, 0, 8, 0},
+    {"auto_50x31_halo3", 50, 31, 0, 0, 3, 0},  // w up to the halo exactly
+    {"auto_7x5", 7, 5, 0, 0, 8, 0},            // w up to the whole tile
+    {"row_Px1_37x23", 37, 23, -1, 1, 8, 0},   {"column_1xP_37x23", 37, 23, 1, -1, 8, 0},
+    {"uneven_Px1_10x9", 10, 9, -1, 1, 8, 0},  // 4 ranks: 3, 3, 3, 1 columns
+    {"uneven_1xP_9x10", 9, 10, 1, -1, 8, 0},  {"grid_2x2_37x23", 37, 23, 2, 2, 8, 4},
+    {"grid_2x2_50x31", 50, 31, 2, 2, 8, 4},   {"grid_3x1_37x23", 37, 23, 3, 1, 8, 3},
+    {"grid_1x3_50x31", 50, 31, 1, 3, 8, 3},   {"grid_2x1_37x23", 37, 23, 2, 1, 8, 2},
+};
+INSTANTIATE_TEST_SUITE_P(Tiles, Halo, ::testing::ValuesIn(kConfigs), config_name);
+
+// ---- construction -----------------------------------------------------------
+
+TEST_F(Dist, RejectsCommunicatorsWithoutPeriodicCartesianTopology) {
+  const TileSetup s(37, 23, 0, 0, 8);
+  EXPECT_THROW(HaloExchanger(MPI_COMM_WORLD, s.g), std::invalid_argument);
+  MPI_Comm open = MPI_COMM_NULL;
+  int dims[2] = {s.d.px, s.d.py}, periods[2] = {1, 0};
+  MPI_Cart_create(MPI_COMM_WORLD, 2, dims, periods, 0, &open);
+  EXPECT_THROW(HaloExchanger(open, s.g), std::invalid_argument);
+  MPI_Comm_free(&open);
+}
+
+TEST_F(Dist, RejectsInconsistentTiles) {
+  // Tile 0 claims one row more than its left/right neighbours have (with
+  // one tile along x: a pitch too short for its row). The neighbours see it,
+  // and every rank throws, none waits for the others.
+  const TileSetup s(37, 23, -1, 1, 4);
+  TileGeom g = s.g;
+  if (s.d.px == 1)
+    g.pitch = g.nx + 2 * g.halo - 1;
+  else if (s.i == 0)
+    g.ny += 1;
+  EXPECT_THROW(HaloExchanger(s.cart, g), std::invalid_argument);
+}
+
+// Prints the failures of ranks other than 0, whose default printer is off.
+class RankFailurePrinter : public ::testing::EmptyTestEventListener {
+ public:
+  explicit RankFailurePrinter(int rank) : rank_(rank) {}
+  void OnTestPartResult(const ::testing::TestPartResult& r) override {
+    if (!r.failed()) return;
+    std::fprintf(stderr, "[rank %d] %s:%d: Failure\n%s\n", rank_,
+                 r.file_name() ? r.file_name() : "?", r.line_number(), r.message());
+    std::fflush(stderr);
+  }
+
+ private:
+  int rank_;
+};
+
+}  // namespace
+}  // namespace erg::dist
+
+int main(int argc, char** argv) {
+  MPI_Init(&argc, &argv);
+  ::testing::InitGoogleTest(&argc, argv);
+  const int rank = erg::dist::world_rank();
+  ::testing::TestEventListeners& listeners = ::testing::UnitTest::GetInstance()->listeners();
+  if (rank != 0) {
+    delete listeners.Release(listeners.default_result_printer());
+    listeners.Append(new erg::dist::RankFailurePrinter(rank));
+  }
+  const int mine = RUN_ALL_TESTS();
+  int worst = 0;
+  MPI_Allreduce(&mine, &worst, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  MPI_Finalize();
+  return worst;
+}

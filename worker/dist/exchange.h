@@ -1,0 +1,66 @@
+// How a tile talks to the rest of the torus: its ghosts are filled from
+// their owners, scatters into ghosts are summed back, and exact totals are
+// summed over all tiles. One tile that is the whole domain wraps onto
+// itself (PeriodicExchange); tiles on MPI ranks exchange messages
+// (MpiExchange, dist/mpi_exchange.h). The backends see only this interface,
+// so the step pipeline is the same on one process and on many.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "core/field.h"
+#include "core/units.h"
+
+namespace erg::dist {
+
+class Exchange {
+ public:
+  virtual ~Exchange() = default;
+
+  // Ghosts of width w get their owners' values.
+  virtual void fill(Field<units_t>& f, int w) = 0;
+  virtual void fill(Field<float>& f, int w) = 0;
+  // Ghosts of width w are added to their owners, then zeroed.
+  virtual void sum(Field<units_t>& f, int w) = 0;
+  // A fill split around work that does not read the ghosts (overlap).
+  virtual void begin_fill(Field<float>& f, int w) { fill(f, w); }
+  virtual void finish_fill(Field<float>& /*f*/, int /*w*/) {}
+
+  // Exact element-wise sums over all tiles, in place.
+  virtual void sum_exact(std::vector<total_t>& v) = 0;
+  // Logical or over all tiles.
+  virtual bool any(bool local) = 0;
+  // The coarse wind grid: every tile contributes the coarse cells it owns
+  // (`mine`, row-major over its coarse rectangle); every tile receives the
+  // whole grid, row-major [cny][cnx]. Tiles are aligned to coarse cells.
+  virtual void gather_coarse(const std::vector<double>& mine, std::vector<double>& all) = 0;
+
+  // Messages and bytes sent by this tile so far (0 on one process).
+  struct Stats {
+    long long messages = 0;
+    long long bytes = 0;
+  };
+  virtual Stats stats() const { return {}; }
+  virtual int tiles() const { return 1; }
+};
+
+// One tile that is the whole torus: ghosts wrap onto its own cells.
+class PeriodicExchange final : public Exchange {
+ public:
+  void fill(Field<units_t>& f, int w) override;
+  void fill(Field<float>& f, int w) override;
+  void sum(Field<units_t>& f, int w) override;
+  void sum_exact(std::vector<total_t>&) override {}
+  bool any(bool local) override { return local; }
+  void gather_coarse(const std::vector<double>& mine, std::vector<double>& all) override { all = mine; }
+};
+
+// The periodic wrap of a whole-domain tile (halos wider than the tile wrap
+// several times).
+template <class T>
+void fill_periodic(Field<T>& f, int width);
+template <class T>
+void sum_periodic(Field<T>& f, int width);
+
+}  // namespace erg::dist
