@@ -1,10 +1,12 @@
 // erg: the command line for users.
 //   erg run JOB.json --out DIR [--steps N] [--snapshot-every K] [--threads T] [--backend B]
+//           [--ranks P] [--tiles PXxPY]      P MPI ranks (mpirun), one tile each
 //   erg run --resume DIR [--steps N]
 //   erg check JOB.json      validate a job and print it with every default filled in
 //   erg params              every model parameter: default, range, unit, source
-// `erg run` starts erg-worker (next to this program, or $ERG_WORKER) and draws
-// a progress bar from the JSON-lines events the worker writes to fd 3.
+// `erg run` starts erg-worker (next to this program, or $ERG_WORKER; under
+// mpirun, or $ERG_MPIRUN, with --ranks) and draws a progress bar from the
+// JSON-lines events rank 0 writes to its stdout.
 #include <fcntl.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -17,6 +19,7 @@
 #include <iostream>
 #include <map>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "job/run_flags.h"
@@ -151,11 +154,32 @@ int cmd_run(const std::vector<std::string>& args) {
     std::perror("erg: pipe");
     return 1;
   }
+  // The worker (rank 0, with --ranks) writes its progress events to stdout,
+  // which mpirun forwards: erg reads them from a pipe.
   const std::string worker = worker_path();
-  std::vector<std::string> wargs = {worker};
-  wargs.insert(wargs.end(), args.begin(), args.end());
+  std::vector<std::string> wargs;
+  if (flags.ranks > 0) {
+    const char* mpirun = std::getenv("ERG_MPIRUN");
+    wargs = {mpirun ? mpirun : "mpirun", "-n", std::to_string(flags.ranks), "--bind-to", "none"};
+    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+    if (static_cast<unsigned>(flags.ranks) > cores) wargs.push_back("--oversubscribe");
+  }
+  wargs.push_back(worker);
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--ranks") {  // erg's own flag
+      ++i;
+      continue;
+    }
+    wargs.push_back(args[i]);
+  }
+  if (flags.ranks > 0 && flags.threads == 0) {
+    // Share the cores between the ranks instead of oversubscribing them.
+    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+    wargs.push_back("--threads");
+    wargs.push_back(std::to_string(std::max(1u, cores / static_cast<unsigned>(flags.ranks))));
+  }
   wargs.push_back("--progress-fd");
-  wargs.push_back("3");
+  wargs.push_back("1");
   const pid_t pid = ::fork();
   if (pid < 0) {
     std::perror("erg: fork");
@@ -163,15 +187,18 @@ int cmd_run(const std::vector<std::string>& args) {
   }
   if (pid == 0) {
     ::close(fds[0]);
-    if (fds[1] != 3) {
-      ::dup2(fds[1], 3);
-      ::close(fds[1]);
+    ::dup2(fds[1], STDOUT_FILENO);
+    ::close(fds[1]);
+    if (::geteuid() == 0) {
+      // Open MPI refuses to run as root unless told it is intended.
+      ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+      ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
     }
     std::vector<char*> argv;
     for (auto& a : wargs) argv.push_back(a.data());
     argv.push_back(nullptr);
     ::execvp(argv[0], argv.data());
-    std::fprintf(stderr, "erg: cannot start %s: %s\n", worker.c_str(), std::strerror(errno));
+    std::fprintf(stderr, "erg: cannot start %s: %s\n", argv[0], std::strerror(errno));
     _exit(127);
   }
   g_child = pid;
@@ -200,8 +227,9 @@ int cmd_run(const std::vector<std::string>& args) {
         bar.snapshot();
       } else if (kind == "start") {
         std::cerr << "erg: " << ev.at("nx") << " x " << ev.at("ny") << " cells on the "
-                  << ev.at("backend") << " backend, steps " << ev.at("step") << " -> "
-                  << ev.at("steps") << ", output in " << out_dir << "\n";
+                  << ev.at("backend") << " backend, " << ev.at("ranks") << " rank(s) as "
+                  << ev.at("tiles") << " tiles, steps " << ev.at("step") << " -> " << ev.at("steps")
+                  << ", output in " << out_dir << "\n";
       } else if (kind == "done") {
         bar.finish();
         std::cerr << "erg: done at step " << ev.at("step") << "; exact sand total "

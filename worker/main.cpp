@@ -1,20 +1,33 @@
-// erg-worker: runs one job (the MPI program of DESIGN.md section 1; on one
-// tile here). Started by `erg run` (which draws the progress bar from the
-// JSON lines on --progress-fd) or directly.
+// erg-worker: runs one job, as one MPI rank of P (DESIGN.md section 1):
+//   mpirun -n P erg-worker JOB.json --out DIR [--tiles PXxPY] [...]
+// or alone (one rank, one tile). Started by `erg run` (which draws the
+// progress bar from the JSON lines rank 0 writes to --progress-fd) or directly.
+#include <mpi.h>
+
 #include <iostream>
 
+#include "dist/decomposition.h"
 #include "job/run_flags.h"
 #include "sim/runner.h"
 
 int main(int argc, char** argv) {
+  int provided = 0;
+  // OpenMP threads inside a rank never call MPI.
+  MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
+  int rank = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   erg::job::RunFlags flags;
+  erg::RunConfig cfg;
   try {
     flags = erg::job::parse_run_flags(std::vector<std::string>(argv + 1, argv + argc));
+    if (flags.ranks > 0)
+      throw std::invalid_argument("--ranks is for erg run; start erg-worker with mpirun -n P");
+    if (!flags.tiles.empty()) erg::dist::parse_tiles(flags.tiles, cfg.tiles_x, cfg.tiles_y);
   } catch (const std::exception& e) {
-    std::cerr << "erg-worker: " << e.what() << "\n";
+    if (rank == 0) std::cerr << "erg-worker: " << e.what() << "\n";
+    MPI_Finalize();
     return 2;
   }
-  erg::RunConfig cfg;
   cfg.job_path = flags.job_path;
   cfg.out_dir = flags.out_dir;
   cfg.resume = !flags.resume_dir.empty();
@@ -25,5 +38,7 @@ int main(int argc, char** argv) {
                                                   : erg::BackendKind::kAuto;
   cfg.progress_fd = flags.progress_fd;
   cfg.quiet = flags.quiet;
-  return erg::run_job(cfg);
+  const int code = erg::run_job(cfg);
+  MPI_Finalize();
+  return code;
 }

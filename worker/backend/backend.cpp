@@ -26,13 +26,13 @@ std::unique_ptr<Backend> make_backend(BackendKind kind, const Model& model, int 
 #ifdef ERG_HAVE_CUDA
     if (cuda_device_available()) return make_cuda_backend(model, ex, local_rank);
     if (kind == BackendKind::kCuda)
-      throw std::runtime_error("--backend cuda: no CUDA device is visible to this process");
+      throw std::invalid_argument("--backend cuda: no CUDA device is visible to this process");
     static bool told = false;
     if (!told) std::cerr << "erg: no CUDA device found, using the CPU backend\n";
     told = true;
 #else
     if (kind == BackendKind::kCuda)
-      throw std::runtime_error(
+      throw std::invalid_argument(
           "--backend cuda: this build has no CUDA backend (nvcc was not found)");
     static bool told = false;
     if (!told) std::cerr << "erg: built without CUDA, using the CPU backend\n";

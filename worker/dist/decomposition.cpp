@@ -9,14 +9,15 @@ namespace erg::dist {
 
 namespace {
 
-Decomposition make(int gnx, int gny, int px, int py) {
+// Tiles of ceil(n / p) cells, rounded up to a multiple of the alignment.
+Decomposition make(int gnx, int gny, int px, int py, int ax, int ay) {
   Decomposition d;
   d.gnx = gnx;
   d.gny = gny;
   d.px = px;
   d.py = py;
-  d.chunk_x = (gnx + px - 1) / px;
-  d.chunk_y = (gny + py - 1) / py;
+  d.chunk_x = ((gnx + px - 1) / px + ax - 1) / ax * ax;
+  d.chunk_y = ((gny + py - 1) / py + ay - 1) / ay * ay;
   return d;
 }
 
@@ -51,7 +52,10 @@ std::string why(const Decomposition& d) {
 
 }  // namespace
 
-Decomposition decompose(int gnx, int gny, int ranks, int min_tile, int px, int py) {
+Decomposition decompose(int gnx, int gny, int ranks, int min_tile, int px, int py, int align_x,
+                        int align_y) {
+  if (align_x < 1 || align_y < 1)
+    throw std::invalid_argument("tile alignment must be at least 1");
   if (gnx <= 0 || gny <= 0)
     throw std::invalid_argument("cannot decompose a domain of " + cells(gnx, gny) +
                                 " cells: both sides must be positive");
@@ -72,7 +76,7 @@ Decomposition decompose(int gnx, int gny, int ranks, int min_tile, int px, int p
                                   " has " + std::to_string(static_cast<std::int64_t>(px) * py) +
                                   " tiles but there are " + std::to_string(ranks) +
                                   " ranks: the product must equal the rank count");
-    const Decomposition d = make(gnx, gny, px, py);
+    const Decomposition d = make(gnx, gny, px, py, align_x, align_y);
     if (!fits(d, min_tile))
       throw std::invalid_argument("cannot split " + cells(gnx, gny) + " cells into " +
                                   std::to_string(px) + " x " + std::to_string(py) + " tiles (" +
@@ -90,7 +94,7 @@ Decomposition decompose(int gnx, int gny, int ranks, int min_tile, int px, int p
   Decomposition squarest;  // the squarest of all, fitting or not (for the message)
   for (int i = 1; i <= ranks; ++i) {
     if (ranks % i != 0) continue;
-    const Decomposition d = make(gnx, gny, i, ranks / i);
+    const Decomposition d = make(gnx, gny, i, ranks / i, align_x, align_y);
     if (!any || squarer(d, squarest)) squarest = d;
     any = true;
     if (!fits(d, min_tile)) continue;

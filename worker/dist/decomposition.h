@@ -1,6 +1,7 @@
 // Partition of the toric domain into a Px x Py Cartesian grid of tiles.
 //
-// Tiles along an axis are ceil(n / p) cells, the last one the remainder, so
+// Tiles along an axis are ceil(n / p) cells (rounded up to the alignment),
+// the last one the remainder, so
 // every tile but the last of a row or column has the same size and is one
 // HDF5 chunk of the snapshot files. Rank r of the periodic Cartesian
 // communicator owns tile (i, j) = its Cartesian coordinates.
@@ -28,7 +29,10 @@ struct Decomposition {
 // whose tiles are closest to square. Throws std::invalid_argument with a
 // clear message when no grid gives every tile at least `min_tile` cells along
 // each axis (the widest halo a stage reads), or when a tile would be empty.
-Decomposition decompose(int gnx, int gny, int ranks, int min_tile, int px = 0, int py = 0);
+// Tile sizes are rounded up to multiples of align_x, align_y (the coarse
+// cells of the wind warping, so that each coarse cell lies in one tile).
+Decomposition decompose(int gnx, int gny, int ranks, int min_tile, int px = 0, int py = 0,
+                        int align_x = 1, int align_y = 1);
 
 // Parses "PXxPY" (e.g. "3x2"); throws std::invalid_argument naming the text.
 void parse_tiles(const std::string& text, int& px, int& py);

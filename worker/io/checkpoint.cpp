@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "io/atomic_file.h"
+#include "io/formats.h"
 #include "io/hdf5_util.h"
 #include "io/io.h"
 
@@ -20,13 +21,11 @@ namespace {
 using detail::AtomicFile;
 using detail::fail;
 using detail::Hid;
+using detail::kCheckpointDeflate;
 
 constexpr const char* kFormat = "erg-checkpoint";
 constexpr std::int64_t kFormatVersion = 1;
 constexpr const char* kLedgerPrefix = "ledger_";
-
-// Checkpoints are written often and read only on restart: favour speed.
-constexpr int kCheckpointDeflate = 1;
 
 // A ledger value is an exact decimal integer, optionally negative.
 bool is_decimal(const std::string& s) {
@@ -51,6 +50,91 @@ herr_t collect_ledger_name(hid_t /*loc*/, const char* name, const H5A_info_t* /*
 
 }  // namespace
 
+// ---- shared with the parallel writer and reader (formats.h) -------------------
+
+void detail::check_checkpoint_ledger(const Checkpoint& c, const std::string& path) {
+  for (std::size_t i = 0; i < c.ledger.size(); ++i) {
+    const auto& [name, value] = c.ledger[i];
+    if (name.empty()) fail(path, "ledger entry with an empty name");
+    if (!is_decimal(value)) {
+      fail(path, "ledger '" + name + "' value '" + value + "' is not a decimal integer");
+    }
+    for (std::size_t j = 0; j < i; ++j) {
+      if (c.ledger[j].first == name) fail(path, "ledger '" + name + "' appears twice");
+    }
+  }
+}
+
+// Track attribute creation order on the root group so the ledger reads back in
+// the order it was written.
+Hid detail::checkpoint_fcpl(const std::string& path) {
+  Hid fcpl = checked(H5Pcreate(H5P_FILE_CREATE), H5Pclose, path, "H5Pcreate(fcpl)");
+  check(H5Pset_attr_creation_order(fcpl.get(), H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED), path,
+        "H5Pset_attr_creation_order");
+  return fcpl;
+}
+
+void detail::write_checkpoint_attrs(hid_t fid, const Checkpoint& c, const std::string& path) {
+  write_attr_str(fid, "format", kFormat, path);
+  write_attr_i64(fid, "format_version", kFormatVersion, path);
+  write_attr_i64(fid, "step", c.step, path);
+  write_attr_i64(fid, "nx", c.nx, path);
+  write_attr_i64(fid, "ny", c.ny, path);
+  write_attr_str(fid, "job_spec", c.job_spec_json, path);
+  for (const auto& [name, value] : c.ledger) {
+    write_attr_str(fid, kLedgerPrefix + name, value, path);
+  }
+}
+
+Checkpoint detail::read_checkpoint_header(hid_t fid, const std::string& path) {
+  // Identify the file before anything else, so that handing a snapshot or
+  // any other HDF5 file to --resume says so plainly.
+  if (H5Aexists(fid, "format") <= 0 || read_attr_str(fid, "format", path) != kFormat) {
+    fail(path,
+         "not an erg checkpoint (root attribute 'format' is not \"" + std::string(kFormat) + "\")");
+  }
+  std::int64_t version = read_attr_i64(fid, "format_version", path);
+  if (version != kFormatVersion) {
+    fail(path, "checkpoint format_version " + std::to_string(version) +
+                   " is not supported (this build reads " + std::to_string(kFormatVersion) + ")");
+  }
+
+  Checkpoint c;
+  c.step = read_attr_i64(fid, "step", path);
+  std::int64_t nx = read_attr_i64(fid, "nx", path);
+  std::int64_t ny = read_attr_i64(fid, "ny", path);
+  if (nx <= 0 || ny <= 0 || nx > INT_MAX || ny > INT_MAX) {
+    fail(path,
+         "checkpoint grid " + std::to_string(nx) + " x " + std::to_string(ny) + " is out of range");
+  }
+  c.nx = static_cast<int>(nx);
+  c.ny = static_cast<int>(ny);
+  c.job_spec_json = read_attr_str(fid, "job_spec", path);
+  return c;
+}
+
+void detail::read_checkpoint_ledger(hid_t fid, const std::string& path, Checkpoint& c) {
+  // Ledgers in creation order; a file made without creation-order tracking
+  // (by another tool) falls back to name order.
+  std::vector<std::string> names;
+  hsize_t idx = 0;
+  if (H5Aiterate2(fid, H5_INDEX_CRT_ORDER, H5_ITER_INC, &idx, collect_ledger_name, &names) < 0) {
+    H5Eclear2(H5E_DEFAULT);
+    names.clear();
+    idx = 0;
+    check(H5Aiterate2(fid, H5_INDEX_NAME, H5_ITER_INC, &idx, collect_ledger_name, &names), path,
+          "cannot list attributes");
+  }
+  for (const std::string& attr : names) {
+    std::string value = read_attr_str(fid, attr, path);
+    std::string name = attr.substr(std::string(kLedgerPrefix).size());
+    if (!is_decimal(value)) {
+      fail(path, "ledger '" + name + "' value '" + value + "' is not a decimal integer");
+    }
+    c.ledger.emplace_back(std::move(name), std::move(value));
+  }
+}
+
 void write_checkpoint(const std::string& path, const Checkpoint& c) {
   // Validate everything before touching the disk.
   if (c.nx <= 0 || c.ny <= 0) {
@@ -69,27 +153,13 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
   check_size("airborne_units", c.airborne_units.size());
   check_size("vegetation", c.vegetation.size());
   check_size("resistance", c.resistance.size());
-  for (std::size_t i = 0; i < c.ledger.size(); ++i) {
-    const auto& [name, value] = c.ledger[i];
-    if (name.empty()) fail(path, "ledger entry with an empty name");
-    if (!is_decimal(value)) {
-      fail(path, "ledger '" + name + "' value '" + value + "' is not a decimal integer");
-    }
-    for (std::size_t j = 0; j < i; ++j) {
-      if (c.ledger[j].first == name) fail(path, "ledger '" + name + "' appears twice");
-    }
-  }
+  detail::check_checkpoint_ledger(c, path);
 
   AtomicFile out(path);
   std::vector<char> image;
   {
     detail::Hdf5Guard guard;
-    // Track attribute creation order on the root group so the ledger reads
-    // back in the order it was written.
-    Hid fcpl = detail::checked(H5Pcreate(H5P_FILE_CREATE), H5Pclose, path, "H5Pcreate(fcpl)");
-    detail::check(
-        H5Pset_attr_creation_order(fcpl.get(), H5P_CRT_ORDER_TRACKED | H5P_CRT_ORDER_INDEXED), path,
-        "H5Pset_attr_creation_order");
+    Hid fcpl = detail::checkpoint_fcpl(path);
     Hid file = detail::create_hdf5_in_memory(out, fcpl.get());
     const hid_t fid = file.get();
     const std::vector<hsize_t> grid = {static_cast<hsize_t>(c.ny), static_cast<hsize_t>(c.nx)};
@@ -107,15 +177,7 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
     floats("vegetation", c.vegetation);
     floats("resistance", c.resistance);
 
-    detail::write_attr_str(fid, "format", kFormat, path);
-    detail::write_attr_i64(fid, "format_version", kFormatVersion, path);
-    detail::write_attr_i64(fid, "step", c.step, path);
-    detail::write_attr_i64(fid, "nx", c.nx, path);
-    detail::write_attr_i64(fid, "ny", c.ny, path);
-    detail::write_attr_str(fid, "job_spec", c.job_spec_json, path);
-    for (const auto& [name, value] : c.ledger) {
-      detail::write_attr_str(fid, kLedgerPrefix + name, value, path);
-    }
+    detail::write_checkpoint_attrs(fid, c, path);
 
     image = detail::take_hdf5_image(file, path);
   }
@@ -128,29 +190,8 @@ Checkpoint read_checkpoint(const std::string& path) {
   Hid file = detail::open_hdf5_readonly(path, "checkpoint");
   const hid_t fid = file.get();
 
-  // Identify the file before anything else, so that handing a snapshot or
-  // any other HDF5 file to --resume says so plainly.
-  if (H5Aexists(fid, "format") <= 0 || detail::read_attr_str(fid, "format", path) != kFormat) {
-    fail(path,
-         "not an erg checkpoint (root attribute 'format' is not \"" + std::string(kFormat) + "\")");
-  }
-  std::int64_t version = detail::read_attr_i64(fid, "format_version", path);
-  if (version != kFormatVersion) {
-    fail(path, "checkpoint format_version " + std::to_string(version) +
-                   " is not supported (this build reads " + std::to_string(kFormatVersion) + ")");
-  }
-
-  Checkpoint c;
-  c.step = detail::read_attr_i64(fid, "step", path);
-  std::int64_t nx = detail::read_attr_i64(fid, "nx", path);
-  std::int64_t ny = detail::read_attr_i64(fid, "ny", path);
-  if (nx <= 0 || ny <= 0 || nx > INT_MAX || ny > INT_MAX) {
-    fail(path,
-         "checkpoint grid " + std::to_string(nx) + " x " + std::to_string(ny) + " is out of range");
-  }
-  c.nx = static_cast<int>(nx);
-  c.ny = static_cast<int>(ny);
-  c.job_spec_json = detail::read_attr_str(fid, "job_spec", path);
+  Checkpoint c = detail::read_checkpoint_header(fid, path);
+  const std::int64_t nx = c.nx, ny = c.ny;
 
   // Every dataset must be exactly [ny][nx]; read_dataset says which is not.
   const std::vector<hsize_t> grid = {static_cast<hsize_t>(ny), static_cast<hsize_t>(nx)};
@@ -163,25 +204,7 @@ Checkpoint read_checkpoint(const std::string& path) {
   c.vegetation = detail::read_dataset<float>(fid, "vegetation", H5T_NATIVE_FLOAT, grid, path);
   c.resistance = detail::read_dataset<float>(fid, "resistance", H5T_NATIVE_FLOAT, grid, path);
 
-  // Ledgers in creation order; a file made without creation-order tracking
-  // (by another tool) falls back to name order.
-  std::vector<std::string> names;
-  hsize_t idx = 0;
-  if (H5Aiterate2(fid, H5_INDEX_CRT_ORDER, H5_ITER_INC, &idx, collect_ledger_name, &names) < 0) {
-    H5Eclear2(H5E_DEFAULT);
-    names.clear();
-    idx = 0;
-    detail::check(H5Aiterate2(fid, H5_INDEX_NAME, H5_ITER_INC, &idx, collect_ledger_name, &names),
-                  path, "cannot list attributes");
-  }
-  for (const std::string& attr : names) {
-    std::string value = detail::read_attr_str(fid, attr, path);
-    std::string name = attr.substr(std::string(kLedgerPrefix).size());
-    if (!is_decimal(value)) {
-      fail(path, "ledger '" + name + "' value '" + value + "' is not a decimal integer");
-    }
-    c.ledger.emplace_back(std::move(name), std::move(value));
-  }
+  detail::read_checkpoint_ledger(fid, path, c);
   return c;
 }
 

@@ -165,17 +165,25 @@ inline std::vector<char> take_hdf5_image(Hid& file, const std::string& path) {
   return image;
 }
 
-// Opens an existing HDF5 file read-only; `kind` ("snapshot", ...) only words
-// the messages. Checks existence and the signature first so the common
-// mistakes get a plain message rather than an HDF5 stack.
-inline Hid open_hdf5_readonly(const std::string& path, const std::string& kind) {
+// Checks that `path` exists, is a regular file and has the HDF5 signature, so
+// the common mistakes get a plain message rather than an HDF5 stack; `kind`
+// ("snapshot", ...) only words the messages. (The parallel reader runs these
+// checks on one rank before every rank opens the file.)
+inline void check_hdf5_file(const std::string& path, const std::string& kind) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) fail_errno(path, "cannot open " + kind, errno);
   if (!S_ISREG(st.st_mode)) fail(path, "cannot open " + kind + ": not a regular file");
   htri_t is_hdf5 = H5Fis_hdf5(path.c_str());
   if (is_hdf5 == 0) fail(path, kind + " is not an HDF5 file (wrong file, or corrupt)");
   if (is_hdf5 < 0) fail_hdf5(path, "cannot read " + kind);
-  return checked(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose, path,
+}
+
+// Opens an existing HDF5 file read-only, after check_hdf5_file. `fapl` picks
+// the driver (the default sec2, or mpio for a collective open).
+inline Hid open_hdf5_readonly(const std::string& path, const std::string& kind,
+                              hid_t fapl = H5P_DEFAULT) {
+  check_hdf5_file(path, kind);
+  return checked(H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl), H5Fclose, path,
                  "cannot open " + kind + " (corrupt or truncated?)");
 }
 
@@ -215,22 +223,28 @@ inline std::string shape_text(const std::vector<hsize_t>& dims) {
   return s.empty() ? "scalar" : s;
 }
 
-// Chunks of at most 256 x 256 cells over the first two dimensions (whole
-// extent over the rest): small enough that reading a sub-region or one tile
-// touches little, large enough to compress well. Shuffle before deflate
-// groups the bytes of each significance, which compresses floats and small
-// integers much better than deflate alone.
-inline Hid chunked_deflate_dcpl(const std::vector<hsize_t>& dims, int level,
-                                const std::string& path) {
-  std::vector<hsize_t> chunk = dims;
-  for (std::size_t i = 0; i < chunk.size() && i < 2; ++i)
-    chunk[i] = std::min<hsize_t>(dims[i], 256);
+// Chunked, shuffled and deflated, with the chunk shape as given (the parallel
+// writers chunk by tile). Shuffle before deflate groups the bytes of each
+// significance, which compresses floats and small integers much better than
+// deflate alone.
+inline Hid deflate_dcpl(const std::vector<hsize_t>& chunk, int level, const std::string& path) {
   Hid dcpl = checked(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, path, "H5Pcreate(dcpl)");
   check(H5Pset_chunk(dcpl.get(), static_cast<int>(chunk.size()), chunk.data()), path,
         "H5Pset_chunk");
   check(H5Pset_shuffle(dcpl.get()), path, "H5Pset_shuffle");
   check(H5Pset_deflate(dcpl.get(), static_cast<unsigned>(level)), path, "H5Pset_deflate");
   return dcpl;
+}
+
+// Chunks of at most 256 x 256 cells over the first two dimensions (whole
+// extent over the rest): small enough that reading a sub-region or one tile
+// touches little, large enough to compress well.
+inline Hid chunked_deflate_dcpl(const std::vector<hsize_t>& dims, int level,
+                                const std::string& path) {
+  std::vector<hsize_t> chunk = dims;
+  for (std::size_t i = 0; i < chunk.size() && i < 2; ++i)
+    chunk[i] = std::min<hsize_t>(dims[i], 256);
+  return deflate_dcpl(chunk, level, path);
 }
 
 // Creates dataset `name` of `file_type` and writes `data` (in `mem_type`).

@@ -9,26 +9,57 @@
 #include <vector>
 
 #include "io/atomic_file.h"
+#include "io/formats.h"
 #include "io/hdf5_util.h"
 #include "io/io.h"
 
 namespace erg::io {
-namespace {
 
-using detail::AtomicFile;
-using detail::fail;
-using detail::Hid;
+// ---- shared with the parallel writer (formats.h) ------------------------------
 
-// Snapshots are written once and read many times (ParaView, scripts), so a
-// middle deflate level is worth its cost.
-constexpr int kSnapshotDeflate = 4;
-
-void check_grid(const std::string& path, int nx, int ny) {
+void detail::check_grid(const std::string& path, int nx, int ny) {
   if (nx <= 0 || ny <= 0) {
     fail(path, "invalid grid " + std::to_string(nx) + " x " + std::to_string(ny) +
                    " (nx and ny must be positive)");
   }
 }
+
+std::vector<detail::SnapshotLayer> detail::snapshot_layers(const SnapshotFields& f,
+                                                           bool with_airborne, bool with_shadow) {
+  std::vector<SnapshotLayer> layers = {{"bedrock", f.bedrock, 1},
+                                       {"sand", f.sand, 1},
+                                       {"vegetation", f.vegetation, 1},
+                                       {"wind", f.wind, 2}};
+  if (with_airborne) layers.push_back({"airborne", f.airborne, 1});
+  if (with_shadow) layers.push_back({"shadow", f.shadow, 1});
+  return layers;
+}
+
+void detail::write_snapshot_attrs(hid_t fid, const SnapshotMeta& meta, const std::string& path) {
+  write_attr_i64(fid, "step", meta.step, path);
+  write_attr_f64(fid, "time_days", meta.time_days, path);
+  write_attr_f64(fid, "cell_size_m", meta.cell_size_m, path);
+  write_attr_i64(fid, "nx", meta.nx, path);
+  write_attr_i64(fid, "ny", meta.ny, path);
+  write_attr_str(fid, "job_spec", meta.job_spec_json, path);
+  write_attr_str(fid, "erg_version", meta.erg_version, path);
+  write_attr_f64(fid, "unit_m", meta.unit_m, path);
+  write_attr_str(fid, "sand_units_total", meta.sand_units_total, path);
+  write_attr_str(fid, "bedrock_units_total", meta.bedrock_units_total, path);
+  write_attr_str(fid, "airborne_units_total", meta.airborne_units_total, path);
+  write_attr_u64(fid, "seed", meta.seed, path);
+  write_attr_str(fid, "backend", meta.backend, path);
+  // Fixed by the model: the domain is a torus and all lengths are metres.
+  write_attr_str(fid, "periodic", "xy", path);
+  write_attr_str(fid, "units", "m", path);
+}
+
+namespace {
+
+using detail::AtomicFile;
+using detail::check_grid;
+using detail::fail;
+using detail::Hid;
 
 // Reads nx or ny back, rejecting values that do not fit the int of the API.
 int read_extent(hid_t file, const char* name, const std::string& path) {
@@ -93,34 +124,13 @@ void write_snapshot(const std::string& path, const SnapshotMeta& meta, const Sna
     Hid file = detail::create_hdf5_in_memory(out);
     const hid_t fid = file.get();
     const hsize_t ny = static_cast<hsize_t>(meta.ny), nx = static_cast<hsize_t>(meta.nx);
-    const std::vector<hsize_t> grid = {ny, nx};
-    auto layer = [&](const char* name, const float* data, const std::vector<hsize_t>& dims) {
-      detail::write_dataset(fid, name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, dims, data,
-                            kSnapshotDeflate, path);
-    };
-    layer("bedrock", f.bedrock, grid);
-    layer("sand", f.sand, grid);
-    layer("vegetation", f.vegetation, grid);
-    layer("wind", f.wind, {ny, nx, 2});
-    if (f.airborne) layer("airborne", f.airborne, grid);
-    if (f.shadow) layer("shadow", f.shadow, grid);
-
-    detail::write_attr_i64(fid, "step", meta.step, path);
-    detail::write_attr_f64(fid, "time_days", meta.time_days, path);
-    detail::write_attr_f64(fid, "cell_size_m", meta.cell_size_m, path);
-    detail::write_attr_i64(fid, "nx", meta.nx, path);
-    detail::write_attr_i64(fid, "ny", meta.ny, path);
-    detail::write_attr_str(fid, "job_spec", meta.job_spec_json, path);
-    detail::write_attr_str(fid, "erg_version", meta.erg_version, path);
-    detail::write_attr_f64(fid, "unit_m", meta.unit_m, path);
-    detail::write_attr_str(fid, "sand_units_total", meta.sand_units_total, path);
-    detail::write_attr_str(fid, "bedrock_units_total", meta.bedrock_units_total, path);
-    detail::write_attr_str(fid, "airborne_units_total", meta.airborne_units_total, path);
-    detail::write_attr_u64(fid, "seed", meta.seed, path);
-    detail::write_attr_str(fid, "backend", meta.backend, path);
-    // Fixed by the model: the domain is a torus and all lengths are metres.
-    detail::write_attr_str(fid, "periodic", "xy", path);
-    detail::write_attr_str(fid, "units", "m", path);
+    for (const detail::SnapshotLayer& l : detail::snapshot_layers(f, f.airborne, f.shadow)) {
+      std::vector<hsize_t> dims = {ny, nx};
+      if (l.components > 1) dims.push_back(static_cast<hsize_t>(l.components));
+      detail::write_dataset(fid, l.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, dims, l.data,
+                            detail::kSnapshotDeflate, path);
+    }
+    detail::write_snapshot_attrs(fid, meta, path);
 
     image = detail::take_hdf5_image(file, path);
   }

@@ -44,6 +44,10 @@ RunFlags parse_run_flags(const std::vector<std::string>& args) {
       f.progress_fd = static_cast<int>(parse_count(a, value(), 0, 65535));
     else if (a == "--quiet")
       f.quiet = true;
+    else if (a == "--ranks")
+      f.ranks = static_cast<int>(parse_count(a, value(), 1, 4096));
+    else if (a == "--tiles")
+      f.tiles = value();
     else if (a == "--backend") {
       f.backend = value();
       if (f.backend != "auto" && f.backend != "cpu" && f.backend != "cuda")
@@ -74,7 +78,7 @@ RunFlags parse_run_flags(const std::vector<std::string>& args) {
 
 std::string run_flags_usage() {
   return "usage: run JOB.json --out DIR [--steps N] [--snapshot-every K] [--checkpoint-every C]\n"
-         "                    [--threads T] [--backend auto|cpu|cuda]\n"
+         "                    [--threads T] [--backend auto|cpu|cuda] [--ranks P] [--tiles PXxPY]\n"
          "       run --resume DIR [--steps N] [...]";
 }
 

@@ -1,6 +1,6 @@
 // The command-line flags of a run, parsed in one place for `erg run`,
 // `erg-worker` (and, later, `erg submit`): --steps, --snapshot-every,
-// --checkpoint-every, --threads, --backend, --out, --resume.
+// --checkpoint-every, --threads, --backend, --out, --resume, --ranks, --tiles.
 #pragma once
 
 #include <string>
@@ -17,6 +17,8 @@ struct RunFlags {
   Overrides overrides;
   int threads = 0;               // --threads T; unset (0): all hardware threads
   std::string backend = "auto";  // --backend auto|cpu|cuda
+  int ranks = 0;                 // --ranks P (erg run starts P MPI ranks)
+  std::string tiles;             // --tiles PXxPY (the tile grid; default: chosen)
   int progress_fd = -1;          // --progress-fd FD (erg-worker only)
   bool quiet = false;            // --quiet
 };

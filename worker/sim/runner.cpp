@@ -9,8 +9,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <numeric>
 #include <iostream>
 #include <sstream>
+#include <stdexcept>
+
+#include "dist/decomposition.h"
+#include "dist/mpi_exchange.h"
 
 namespace erg {
 
@@ -66,10 +71,27 @@ void write_atomic_text(const std::string& path, const std::string& text) {
   fs::rename(tmp, path);
 }
 
-void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progress& progress) {
+// This rank's place in the run.
+struct Context {
+  MPI_Comm comm = MPI_COMM_WORLD;  // all ranks
+  MPI_Comm cart = MPI_COMM_NULL;   // the periodic Cartesian grid of tiles
+  int rank = 0, size = 1;
+  dist::Decomposition d;
+  io::TileSlab slab;
+  // Snapshot chunks: a divisor of every tile's extent, so no chunk straddles
+  // tiles or the domain's edge (one chunk per tile when tiles are equal).
+  // Parallel HDF5 1.10.8 fails, at random, writing filtered edge chunks
+  // collectively ("inflate() failed").
+  int chunk_x = 0, chunk_y = 0;
+  bool root() const { return rank == 0; }
+  bool tiled() const { return size > 1 || std::getenv("ERG_DEBUG_TILED") != nullptr; }
+};
+
+void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progress& progress,
+                   const Context& ctx) {
   const std::string name = step_name(sim.step_index());
   Simulation::Output o = sim.output();
-  io::SnapshotMeta meta = sim.snapshot_meta();
+  io::SnapshotMeta meta = sim.snapshot_meta();  // collective: exact totals
   io::SnapshotFields f;
   f.bedrock = o.bedrock.data();
   f.sand = o.sand.data();
@@ -78,21 +100,37 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
   f.airborne = o.airborne.data();
   f.shadow = o.shadow.data();
   const std::string h5 = dir + "/snapshots/" + name + ".h5";
-  io::write_snapshot(h5, meta, f);
+  if (ctx.tiled())
+    io::write_snapshot_parallel(ctx.cart, h5, meta, f, ctx.slab, ctx.chunk_x, ctx.chunk_y);
+  else
+    io::write_snapshot(h5, meta, f);
+  if (!ctx.root()) return;
   io::write_xdmf(dir + "/snapshots/" + name + ".xdmf", name + ".h5", meta, true, true);
   std::string png;
   if (previews) {
     png = dir + "/previews/" + name + ".png";
-    io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, o.bedrock.data(), o.sand.data(),
-                          o.vegetation.data());
+    if (ctx.tiled()) {
+      // The coordinator has only its tile: the preview is made from the file.
+      const io::Snapshot whole = io::read_snapshot(h5);
+      io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, whole.bedrock.data(),
+                            whole.sand.data(), whole.vegetation.data());
+    } else {
+      io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, o.bedrock.data(),
+                            o.sand.data(), o.vegetation.data());
+    }
   }
   progress.emit("{\"event\":\"snapshot\",\"step\":" + std::to_string(sim.step_index()) +
                 ",\"path\":\"" + json_escape(h5) + "\",\"preview\":\"" + json_escape(png) + "\"}");
 }
 
-void write_checkpoint(Simulation& sim, const std::string& dir) {
+void write_checkpoint(Simulation& sim, const std::string& dir, const Context& ctx) {
   const std::string path = dir + "/checkpoints/" + step_name(sim.step_index()) + ".h5";
-  io::write_checkpoint(path, sim.checkpoint());
+  if (ctx.tiled())
+    io::write_checkpoint_parallel(ctx.cart, path, sim.checkpoint(), ctx.slab, ctx.chunk_x,
+                                  ctx.chunk_y);
+  else
+    io::write_checkpoint(path, sim.checkpoint());
+  if (!ctx.root()) return;
   // Keep the newest two: a crash while writing one still leaves a good one.
   std::vector<std::string> all;
   for (const auto& e : fs::directory_iterator(dir + "/checkpoints"))
@@ -100,6 +138,17 @@ void write_checkpoint(Simulation& sim, const std::string& dir) {
       all.push_back(e.path().string());
   std::sort(all.begin(), all.end());
   for (size_t i = 0; i + 2 < all.size(); ++i) fs::remove(all[i]);
+}
+
+void bcast(std::string& s, const Context& ctx) {
+  long long n = static_cast<long long>(s.size());
+  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, ctx.comm);
+  s.resize(static_cast<size_t>(n));
+  if (n > 0) MPI_Bcast(s.data(), static_cast<int>(n), MPI_CHAR, 0, ctx.comm);
+}
+int bcast(int v, const Context& ctx) {
+  MPI_Bcast(&v, 1, MPI_INT, 0, ctx.comm);
+  return v;
 }
 
 std::string fmt_duration(double s) {
@@ -137,121 +186,215 @@ std::string latest_checkpoint(const std::string& out_dir) {
   return "";
 }
 
-int run_job(const RunConfig& cfg) {
-  Progress progress(cfg.progress_fd);
-  std::unique_ptr<Simulation> sim;
-  try {
-    if (cfg.resume) {
-      const std::string ck = latest_checkpoint(cfg.out_dir);
-      if (ck.empty()) {
-        std::cerr << "erg: " << cfg.out_dir << " holds no checkpoint to resume from\n";
-        return 2;
+int run_job(const RunConfig& cfg, MPI_Comm world) {
+  Context ctx;
+  ctx.comm = world;
+  MPI_Comm_rank(world, &ctx.rank);
+  MPI_Comm_size(world, &ctx.size);
+  Progress progress(ctx.root() ? cfg.progress_fd : -1);
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+
+  // ---- the coordinator validates the job once and prepares the directory --
+  int status = 0;
+  std::string spec_json, base_dir = ".", checkpoint;
+  if (ctx.root()) {
+    try {
+      if (cfg.resume) {
+        checkpoint = latest_checkpoint(cfg.out_dir);
+        if (checkpoint.empty()) {
+          std::cerr << "erg: " << cfg.out_dir << " holds no checkpoint to resume from\n";
+          status = 2;
+        } else {
+          erg::v1::JobSpec spec =
+              job::parse_json(io::read_checkpoint(checkpoint).job_spec_json, checkpoint);
+          job::apply_defaults(spec);
+          job::apply_overrides(spec, cfg.overrides);
+          spec_json = job::to_json(spec);
+        }
+      } else {
+        erg::v1::JobSpec spec = job::load_job_file(cfg.job_path);
+        job::apply_overrides(spec, cfg.overrides);
+        base_dir = job::base_dir_of(cfg.job_path);
+        auto problems = job::validate(spec, base_dir);
+        if (!problems.empty()) throw job::SpecError(problems);
+        if (!latest_checkpoint(cfg.out_dir).empty()) {
+          std::cerr << "erg: " << cfg.out_dir
+                    << " already holds a run; continue it with --resume or choose another --out\n";
+          status = 2;
+        } else {
+          spec_json = job::to_json(spec);
+        }
       }
-      io::Checkpoint c = io::read_checkpoint(ck);
-      erg::v1::JobSpec spec = job::parse_json(c.job_spec_json, ck);
-      job::apply_defaults(spec);
-      job::apply_overrides(spec, cfg.overrides);
-      c.job_spec_json = job::to_json(spec);
-      sim = std::make_unique<Simulation>(c, cfg.options);
-      if (!cfg.quiet) std::cerr << "erg: resuming " << cfg.out_dir << " at step " << c.step << "\n";
-    } else {
-      erg::v1::JobSpec spec = job::load_job_file(cfg.job_path);
-      job::apply_overrides(spec, cfg.overrides);
-      auto problems = job::validate(spec, job::base_dir_of(cfg.job_path));
-      if (!problems.empty()) throw job::SpecError(problems);
-      if (!latest_checkpoint(cfg.out_dir).empty()) {
-        std::cerr << "erg: " << cfg.out_dir
-                  << " already holds a run; continue it with --resume or choose another --out\n";
-        return 2;
-      }
-      for (const char* sub : {"snapshots", "previews", "checkpoints"})
-        fs::create_directories(fs::path(cfg.out_dir) / sub);
-      write_atomic_text(cfg.out_dir + "/job.json", job::to_json(spec));
-      sim = std::make_unique<Simulation>(spec, job::base_dir_of(cfg.job_path), cfg.options);
+    } catch (const job::SpecError& e) {
+      std::cerr << "erg: invalid job:\n" << e.what() << "\n";
+      status = 2;
+    } catch (const std::exception& e) {
+      std::cerr << "erg: " << e.what() << "\n";
+      status = 2;
     }
-  } catch (const job::SpecError& e) {
-    std::cerr << "erg: invalid job:\n" << e.what() << "\n";
-    return 2;
+  }
+  status = bcast(status, ctx);
+  if (status != 0) return status;
+  bcast(spec_json, ctx);
+  bcast(base_dir, ctx);
+  bcast(checkpoint, ctx);
+
+  // ---- every rank: the tile grid, its tile, its simulation -----------------
+  std::unique_ptr<Simulation> sim;
+  std::unique_ptr<dist::Exchange> exchange;
+  try {
+    erg::v1::JobSpec spec = job::parse_json(spec_json, "job");
+    job::apply_defaults(spec);
+    const int gnx = static_cast<int>(spec.domain().nx()), gny = static_cast<int>(spec.domain().ny());
+    const int round = ctx.tiled() ? 0 : 1;
+    const Model whole = make_model(spec, gnx, gny, 0, 0, round);
+    // Tiles at least as wide as the halo (neighbours' ghosts come from one
+    // tile), aligned to the coarse wind cells.
+    ctx.d = dist::decompose(gnx, gny, ctx.size, ctx.tiled() ? whole.tile.halo : 1, cfg.tiles_x,
+                            cfg.tiles_y, whole.coarse.cx, whole.coarse.cy);
+    ctx.chunk_x = std::gcd(ctx.d.chunk_x, ctx.d.nx(ctx.d.px - 1));
+    ctx.chunk_y = std::gcd(ctx.d.chunk_y, ctx.d.ny(ctx.d.py - 1));
+    int dims[2] = {ctx.d.px, ctx.d.py}, periods[2] = {1, 1}, coords[2] = {0, 0};
+    MPI_Cart_create(world, 2, dims, periods, 0, &ctx.cart);
+    MPI_Cart_coords(ctx.cart, ctx.rank, 2, coords);
+    ctx.slab = {ctx.d.x0(coords[0]), ctx.d.y0(coords[1]), ctx.d.nx(coords[0]), ctx.d.ny(coords[1])};
+    MPI_Comm node;
+    MPI_Comm_split_type(world, MPI_COMM_TYPE_SHARED, ctx.rank, MPI_INFO_NULL, &node);
+    Placement place;
+    MPI_Comm_rank(node, &place.local_rank);  // GPU: local_rank % devices
+    MPI_Comm_free(&node);
+    place.x0 = ctx.slab.x0;
+    place.y0 = ctx.slab.y0;
+    place.nx = ctx.slab.nx;
+    place.ny = ctx.slab.ny;
+    place.avalanche_round = round;
+    if (ctx.tiled()) {
+      const Model tile = make_model(spec, place.nx, place.ny, place.x0, place.y0, round);
+      exchange = std::make_unique<dist::MpiExchange>(ctx.cart, ctx.d, tile.tile, whole.coarse.cx,
+                                                     whole.coarse.cy);
+      place.exchange = exchange.get();
+    }
+    if (cfg.resume) {
+      io::Checkpoint c = ctx.tiled() ? io::read_checkpoint_parallel(ctx.cart, checkpoint, ctx.slab)
+                                     : io::read_checkpoint(checkpoint);
+      c.job_spec_json = spec_json;  // with this run's overrides
+      sim = std::make_unique<Simulation>(c, cfg.options, place);
+    } else {
+      sim = std::make_unique<Simulation>(spec, base_dir, cfg.options, place);
+    }
   } catch (const std::exception& e) {
-    std::cerr << "erg: " << e.what() << "\n";
-    return 2;
+    // Every rank decides the same for a bad grid or spec; anything else is
+    // this rank's alone, so the job is aborted.
+    if (ctx.root()) std::cerr << "erg: " << e.what() << "\n";
+    if (dynamic_cast<const std::invalid_argument*>(&e)) return 2;
+    std::cerr << "erg-worker rank " << ctx.rank << ": " << e.what() << "\n";
+    MPI_Abort(world, 1);
   }
 
   const auto& run = sim->spec().run();
   const std::int64_t steps = run.steps();
   const bool previews = run.previews();
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
   const auto totals_json = [&]() {
-    const Totals t = sim->totals();
+    const Totals t = sim->totals();  // collective
     return "\"sand_units_total\":\"" + to_decimal(t.sand) + "\",\"airborne_units_total\":\"" +
            to_decimal(t.airborne) + "\",\"bedrock_units_total\":\"" + to_decimal(t.bedrock) + "\"";
   };
 
   try {
-    fs::create_directories(fs::path(cfg.out_dir) / "snapshots");
-    fs::create_directories(fs::path(cfg.out_dir) / "previews");
-    fs::create_directories(fs::path(cfg.out_dir) / "checkpoints");
-    progress.emit("{\"event\":\"start\",\"step\":" + std::to_string(sim->step_index()) +
-                  ",\"steps\":" + std::to_string(steps) + ",\"backend\":\"" +
-                  sim->backend().name() + "\",\"nx\":" + std::to_string(sim->model().tile.gnx) +
-                  ",\"ny\":" + std::to_string(sim->model().tile.gny) + "}");
+    if (ctx.root()) {
+      for (const char* sub : {"snapshots", "previews", "checkpoints"})
+        fs::create_directories(fs::path(cfg.out_dir) / sub);
+      if (!cfg.resume) write_atomic_text(cfg.out_dir + "/job.json", spec_json);
+      if (cfg.resume && !cfg.quiet)
+        std::cerr << "erg: resuming " << cfg.out_dir << " at step " << sim->step_index() << "\n";
+      progress.emit("{\"event\":\"start\",\"step\":" + std::to_string(sim->step_index()) +
+                    ",\"steps\":" + std::to_string(steps) + ",\"backend\":\"" + sim->backend().name() +
+                    "\",\"nx\":" + std::to_string(sim->model().tile.gnx) +
+                    ",\"ny\":" + std::to_string(sim->model().tile.gny) +
+                    ",\"ranks\":" + std::to_string(ctx.size) + ",\"tiles\":\"" +
+                    std::to_string(ctx.d.px) + "x" + std::to_string(ctx.d.py) + "\"}");
+    }
+    MPI_Barrier(world);  // the directories exist before any collective write
     if (!cfg.resume) {
-      write_outputs(*sim, cfg.out_dir, previews, progress);
-      if (run.checkpoint_every() > 0) write_checkpoint(*sim, cfg.out_dir);
+      write_outputs(*sim, cfg.out_dir, previews, progress, ctx);
+      if (run.checkpoint_every() > 0) write_checkpoint(*sim, cfg.out_dir, ctx);
     }
     using Clock = std::chrono::steady_clock;
     const auto t0 = Clock::now();
     auto last_report = t0, last_log = t0;
     const std::int64_t first = sim->step_index();
+    const dist::Exchange::Stats stats0 = sim->exchange().stats();
     while (sim->step_index() < steps) {
       sim->step();
       const std::int64_t s = sim->step_index();
       const bool last = s == steps;
       if (last || (run.snapshot_every() > 0 && s % run.snapshot_every() == 0))
-        write_outputs(*sim, cfg.out_dir, previews, progress);
+        write_outputs(*sim, cfg.out_dir, previews, progress, ctx);
       if (last || (run.checkpoint_every() > 0 && s % run.checkpoint_every() == 0))
-        write_checkpoint(*sim, cfg.out_dir);
+        write_checkpoint(*sim, cfg.out_dir, ctx);
+      // The coordinator decides, for every rank, whether to report and
+      // whether to stop (a signal reaches the ranks at different steps).
       const auto now = Clock::now();
+      int control = 0;
+      if (ctx.root()) {
+        if (last || std::chrono::duration<double>(now - last_report).count() >= 0.25) control |= 1;
+        if (g_signal.load() != 0 && !last) control |= 2;
+      }
+      control = bcast(control, ctx);
       const double elapsed = std::chrono::duration<double>(now - t0).count();
       const double rate = static_cast<double>(s - first) / std::max(elapsed, 1e-9);
       const double eta = static_cast<double>(steps - s) / std::max(rate, 1e-9);
-      if (last || std::chrono::duration<double>(now - last_report).count() >= 0.25) {
+      if (control & 1) {
         last_report = now;
+        const std::string totals = totals_json();
         std::ostringstream o;
         o << "{\"event\":\"progress\",\"step\":" << s << ",\"steps\":" << steps
           << ",\"steps_per_s\":" << rate << ",\"eta_s\":" << eta
-          << ",\"time_days\":" << sim->time_days() << "," << totals_json() << "}";
+          << ",\"time_days\":" << sim->time_days() << "," << totals << "}";
         progress.emit(o.str());
       }
-      if (!cfg.quiet && cfg.progress_fd < 0 &&
+      if (ctx.root() && !cfg.quiet && cfg.progress_fd < 0 &&
           (last || std::chrono::duration<double>(now - last_log).count() >= 5.0)) {
         last_log = now;
         std::cerr << "erg: step " << s << "/" << steps << "  " << rate << " steps/s  ETA "
                   << fmt_duration(eta) << "\n";
       }
-      if (g_signal.load() != 0 && !last) {
-        write_checkpoint(*sim, cfg.out_dir);
-        const int sig = g_signal.load();
-        std::cerr << "erg: stopped by signal " << sig << " at step " << s
-                  << "; checkpoint written, resume with --resume\n";
-        progress.emit("{\"event\":\"stopped\",\"step\":" + std::to_string(s) + "}");
+      if (control & 2) {
+        write_checkpoint(*sim, cfg.out_dir, ctx);
+        const int sig = bcast(g_signal.load(), ctx);
+        if (ctx.root()) {
+          std::cerr << "erg: stopped by signal " << sig << " at step " << s
+                    << "; checkpoint written, resume with --resume\n";
+          progress.emit("{\"event\":\"stopped\",\"step\":" + std::to_string(s) + "}");
+        }
         return 128 + sig;
       }
     }
-    // Per-stage timing, for the curious and for erg-bench comparisons.
-    const StageTimes& t = sim->times();
-    std::ostringstream o;
-    o << "{\"event\":\"done\",\"step\":" << sim->step_index() << "," << totals_json()
-      << ",\"stage_ms\":{";
-    for (int k = 0; k < kStageCount; ++k)
-      o << (k ? "," : "") << "\"" << kStageNames[k] << "\":" << t.ms[static_cast<size_t>(k)];
-    o << "}}";
-    progress.emit(o.str());
+    // Halo traffic per step (the most any rank sent), and per-stage timing.
+    const dist::Exchange::Stats st = sim->exchange().stats();
+    const std::int64_t ran = std::max<std::int64_t>(1, sim->step_index() - first);
+    long long mine[2] = {(st.messages - stats0.messages) / ran, (st.bytes - stats0.bytes) / ran};
+    long long most[2] = {0, 0};
+    MPI_Reduce(mine, most, 2, MPI_LONG_LONG, MPI_MAX, 0, world);
+    const std::string totals = totals_json();
+    if (ctx.root()) {
+      const StageTimes& t = sim->times();
+      std::ostringstream o;
+      o << "{\"event\":\"done\",\"step\":" << sim->step_index() << "," << totals
+        << ",\"halo_messages_per_step\":" << most[0] << ",\"halo_bytes_per_step\":" << most[1]
+        << ",\"stage_ms\":{";
+      for (int k = 0; k < kStageCount; ++k)
+        o << (k ? "," : "") << "\"" << kStageNames[k] << "\":" << t.ms[static_cast<size_t>(k)];
+      o << "}}";
+      progress.emit(o.str());
+    }
   } catch (const std::exception& e) {
-    std::cerr << "erg: run failed at step " << sim->step_index() << ": " << e.what() << "\n";
+    std::cerr << "erg-worker rank " << ctx.rank << ": run failed at step " << sim->step_index()
+              << ": " << e.what() << "\n";
     progress.emit("{\"event\":\"failed\",\"step\":" + std::to_string(sim->step_index()) +
                   ",\"reason\":\"" + json_escape(e.what()) + "\"}");
+    if (ctx.tiled()) MPI_Abort(world, 1);  // never leave the other ranks waiting
     return 1;
   }
   return 0;

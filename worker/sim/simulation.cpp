@@ -60,7 +60,7 @@ void Simulation::place_tile(const Placement& place) {
   }
   local_rank_ = place.local_rank;
   // Several tiles: one exchange per step for all avalanching iterations.
-  const int round = exchange_->tiles() > 1 ? 0 : 1;
+  const int round = place.avalanche_round >= 0 ? place.avalanche_round : exchange_->tiles() > 1 ? 0 : 1;
   if (place.nx > 0)
     model_ = make_model(spec_, place.nx, place.ny, place.x0, place.y0, round);
   else

@@ -57,9 +57,12 @@ ERG_HD Landing landing(int x, int y, Vec2 w, const Params& p) {
   const bool moving = speed > 0.0f;  // (selects, no branch: loops vectorise)
   const float hop_m = min_of(speed * p.hop_time_s, p.max_hop_m);
   const float scale = moving ? hop_m / ((moving ? speed : 1.0f) * p.cell_m) : 0.0f;
-  const float tx = static_cast<float>(x) + w.x * scale, ty = static_cast<float>(y) + w.y * scale;
-  const float x0 = floorf(tx), y0 = floorf(ty);
-  return {static_cast<int>(x0), static_cast<int>(y0), tx - x0, ty - y0};
+  // The hop is split into whole cells and a fraction on its own (not added
+  // to the cell's coordinate in floating point), so the split does not
+  // depend on where the tile starts: the same on every tiling.
+  const float dx = w.x * scale, dy = w.y * scale;
+  const float fx = floorf(dx), fy = floorf(dy);
+  return {x + static_cast<int>(fx), y + static_cast<int>(fy), dx - fx, dy - fy};
 }
 
 // Exact bilinear split of `a` units: q[0..3] for (x0,y0), (x0+1,y0),

@@ -15,11 +15,17 @@ namespace erg::wind_shadow {
 
 // Bilinear sample of a padded field. `base` points at local cell (0, 0);
 // (px, py) are local cell coordinates within the halo.
-ERG_HD float bilinear(const float* base, int pitch, float px, float py) {
-  const float x0f = floorf(px), y0f = floorf(py);
-  const float tx = px - x0f, ty = py - y0f;
+// Bilinear sample of a padded field at local cell (x, y) shifted by
+// (dx, dy) cells. The shift is split into whole cells and a fraction on its
+// own, never added to the cell's coordinates in floating point: the weights
+// then depend only on the shift, not on where the tile starts, so every
+// tiling computes the same sample (tiling invariance, DESIGN.md section 3).
+// `base` points at local cell (0, 0).
+ERG_HD float bilinear(const float* base, int pitch, int x, int y, float dx, float dy) {
+  const float fx = floorf(dx), fy = floorf(dy);
+  const float tx = dx - fx, ty = dy - fy;
   // An index, not a pointer: compilers vectorise indexed loads as gathers.
-  const long i = static_cast<long>(y0f) * pitch + static_cast<long>(x0f);
+  const long i = static_cast<long>(y + static_cast<int>(fy)) * pitch + (x + static_cast<int>(fx));
   return (1.0f - ty) * ((1.0f - tx) * base[i] + tx * base[i + 1]) +
          ty * ((1.0f - tx) * base[i + pitch] + tx * base[i + pitch + 1]);
 }
@@ -72,8 +78,7 @@ ERG_HD Upwind upwind(Vec2 w) {
 ERG_HD float angle(const float* h_base, int pitch, int x, int y, Upwind u, int j, float h0,
                    const Params& p) {
   const float fj = static_cast<float>(j);
-  const float hq =
-      bilinear(h_base, pitch, static_cast<float>(x) + fj * u.ux, static_cast<float>(y) + fj * u.uy);
+  const float hq = bilinear(h_base, pitch, x, y, fj * u.ux, fj * u.uy);
   return (hq - h0) * p.inv_distance[j];
 }
 

@@ -1,0 +1,67 @@
+// Internal to erg_io: the parts of the snapshot and checkpoint file contracts
+// that the serial writers (snapshot.cpp, checkpoint.cpp) and the parallel ones
+// (parallel.cpp) share, so that both kinds of writer produce the same files:
+// dataset names and element types, deflate levels, root attributes, and the
+// validation of a checkpoint's header and ledgers. Defined in snapshot.cpp and
+// checkpoint.cpp.
+#pragma once
+
+#include <hdf5.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "io/hdf5_util.h"
+#include "io/io.h"
+
+namespace erg::io::detail {
+
+// ---- snapshots ----------------------------------------------------------------
+
+// Snapshots are written once and read many times (ParaView, scripts), so a
+// middle deflate level is worth its cost.
+inline constexpr int kSnapshotDeflate = 4;
+
+// Fails unless nx and ny are positive ("invalid grid ...").
+void check_grid(const std::string& path, int nx, int ny);
+
+// One float32 layer of a snapshot: /<name>, [ny][nx] (components == 1) or
+// [ny][nx][2] (the wind).
+struct SnapshotLayer {
+  const char* name;
+  const float* data;
+  int components;
+};
+// The layers in file order: the four required ones, then airborne and shadow
+// where asked for (their pointers as given, which may be null).
+std::vector<SnapshotLayer> snapshot_layers(const SnapshotFields& f, bool with_airborne,
+                                           bool with_shadow);
+
+// The root attributes of a snapshot (SnapshotMeta plus the fixed "periodic"
+// and "units").
+void write_snapshot_attrs(hid_t file, const SnapshotMeta& meta, const std::string& path);
+
+// ---- checkpoints --------------------------------------------------------------
+
+// Checkpoints are written often and read only on restart: favour speed.
+inline constexpr int kCheckpointDeflate = 1;
+
+// Fails on an empty, repeated or non-decimal ledger entry.
+void check_checkpoint_ledger(const Checkpoint& c, const std::string& path);
+
+// The file creation properties of a checkpoint: attribute creation order is
+// tracked so that the ledger reads back in the order it was written.
+Hid checkpoint_fcpl(const std::string& path);
+
+// Root attributes: format, format_version, step, nx, ny, job_spec, ledger_*.
+void write_checkpoint_attrs(hid_t file, const Checkpoint& c, const std::string& path);
+
+// Identifies the file as an erg checkpoint of a supported version and reads
+// step, nx, ny (validated) and job_spec; the arrays and ledger stay empty.
+Checkpoint read_checkpoint_header(hid_t file, const std::string& path);
+
+// Appends the ledgers (in creation order where tracked) to c.ledger.
+void read_checkpoint_ledger(hid_t file, const std::string& path, Checkpoint& c);
+
+}  // namespace erg::io::detail
