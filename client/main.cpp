@@ -232,6 +232,9 @@ int cmd_run(const std::vector<std::string>& args) {
                   << ", output in " << out_dir << "\n";
       } else if (kind == "done") {
         bar.finish();
+        if (ev.count("halo_messages_per_step") && num("halo_messages_per_step") > 0)
+          std::cerr << "erg: halo exchange: " << ev.at("halo_messages_per_step") << " messages, "
+                    << ev.at("halo_bytes_per_step") << " bytes per step (the most of any rank)\n";
         std::cerr << "erg: done at step " << ev.at("step") << "; exact sand total "
                   << ev.at("sand_units_total") << " units on the ground + "
                   << ev.at("airborne_units_total") << " airborne\n";

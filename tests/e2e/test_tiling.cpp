@@ -1,0 +1,235 @@
+// The tiled worker (issue 3): the same job on 1, 2, 3, 4 and 6 MPI ranks
+// gives identical exact state and identical snapshot datasets after every
+// snapshot, in both transport modes, with abrasion, vegetation, events and a
+// wind rose on; a restart on another rank count continues bitwise; a rank
+// killed mid-run leaves the previous snapshot and checkpoint intact; a bad
+// tile grid is refused on every rank without hanging.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "../common/temp_dir.h"
+#include "io/io.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using TempDir = erg::test_support::TempDir;
+
+const std::string kErg = ERG_BIN;
+const std::string kWorker = ERG_WORKER_BIN;
+// As root, Open MPI wants to be told; more ranks than cores need oversubscribe.
+const std::string kMpirun = std::string(ERG_MPIEXEC) + " --allow-run-as-root --oversubscribe --bind-to none";
+
+struct Result {
+  int code;
+  std::string output;
+};
+
+Result run(const std::string& cmd) {
+  std::array<char, 4096> buf{};
+  std::string out;
+  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (!p) return {-1, ""};
+  size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) out.append(buf.data(), n);
+  const int status = ::pclose(p);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status), out};
+}
+
+void write(const std::string& path, const std::string& text) {
+  std::ofstream o(path);
+  o << text;
+}
+
+// Every stage and coupling on: bedrock relief, patches, vegetation,
+// resistance, a wind rose, three kinds of events, abrasion turning rock into
+// sand, bedrock avalanching. 120 x 96 cells: 6 tiles of 40 x 48 still hold
+// the halo of 12 avalanching iterations (25 cells).
+std::string job(const std::string& transport) {
+  return R"({"domain": {"nx": 120, "ny": 96, "cell_size_m": 1.0},
+ "layers": {"bedrock": {"fbm": {"amplitude": 3, "wavelength_m": 48, "octaves": 3}},
+            "sand": {"patches": {"coverage": 0.4, "radius_m": 8, "height": 3, "falloff_m": 3}},
+            "vegetation": {"fbm": {"amplitude": 0.6, "offset": 0.1, "wavelength_m": 40, "octaves": 2}},
+            "resistance": {"fbm": {"amplitude": 0.5, "offset": 0.5, "wavelength_m": 30, "octaves": 2}}},
+ "wind": {"rose": {"entries": [{"direction_deg": 30, "speed_mps": 6, "probability": 0.6},
+                               {"direction_deg": 200, "speed_mps": 4, "probability": 0.4}],
+                   "hold_steps": 3}},
+ "events": [{"step": 5, "sand": {"x_m": 60, "y_m": 50, "radius_m": 15, "falloff_m": 5, "height": 2}},
+            {"step": 8, "vegetation": {"x_m": 10, "y_m": 10, "width_m": 20, "height_m": 30, "density": 0.8}},
+            {"step": 12, "bedrock": {"x_m": 100, "y_m": 20, "radius_m": 12, "falloff_m": 4, "height": -3}},
+            {"step": 15, "wind": {"constant": {"speed_mps": 7, "direction_deg": 120}}}],
+ "model": {"abrasion_k": 0.05, "avalanche_iterations": 12, "bedrock_to_sand": true},
+ "transport": ")" +
+         transport + R"(",
+ "run": {"steps": 30, "snapshot_every": 10, "checkpoint_every": 10}})";
+}
+
+std::string worker_on(int ranks, const std::string& args) {
+  if (ranks == 1) return kWorker + " " + args;
+  return kMpirun + " -n " + std::to_string(ranks) + " " + kWorker + " " + args;
+}
+
+// Bitwise comparison of two runs' snapshots and checkpoints at the given steps.
+void expect_same_runs(const std::string& a, const std::string& b, const std::vector<std::string>& steps,
+                      const std::string& what) {
+  for (const auto& s : steps) {
+    const auto sa = erg::io::read_snapshot(a + "/snapshots/step_" + s + ".h5");
+    const auto sb = erg::io::read_snapshot(b + "/snapshots/step_" + s + ".h5");
+    EXPECT_TRUE(sa.bedrock == sb.bedrock) << what << " step " << s << ": /bedrock";
+    EXPECT_TRUE(sa.sand == sb.sand) << what << " step " << s << ": /sand";
+    EXPECT_TRUE(sa.vegetation == sb.vegetation) << what << " step " << s << ": /vegetation";
+    EXPECT_TRUE(sa.wind == sb.wind) << what << " step " << s << ": /wind";
+    EXPECT_TRUE(sa.airborne == sb.airborne) << what << " step " << s << ": /airborne";
+    EXPECT_TRUE(sa.shadow == sb.shadow) << what << " step " << s << ": /shadow";
+    EXPECT_EQ(sa.meta.sand_units_total, sb.meta.sand_units_total) << what << " step " << s;
+    EXPECT_EQ(sa.meta.bedrock_units_total, sb.meta.bedrock_units_total) << what << " step " << s;
+    EXPECT_EQ(sa.meta.airborne_units_total, sb.meta.airborne_units_total) << what << " step " << s;
+    const std::string ca = a + "/checkpoints/step_" + s + ".h5", cb = b + "/checkpoints/step_" + s + ".h5";
+    if (fs::exists(ca) && fs::exists(cb)) {
+      const auto ka = erg::io::read_checkpoint(ca), kb = erg::io::read_checkpoint(cb);
+      EXPECT_TRUE(ka.sand_units == kb.sand_units) << what << " step " << s << ": sand units";
+      EXPECT_TRUE(ka.bedrock_units == kb.bedrock_units) << what << " step " << s << ": bedrock units";
+      EXPECT_TRUE(ka.airborne_units == kb.airborne_units) << what << " step " << s << ": airborne units";
+      EXPECT_TRUE(ka.vegetation == kb.vegetation) << what << " step " << s << ": vegetation";
+    }
+  }
+}
+
+class Tiling : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(Tiling, EveryRankCountGivesTheSameBits) {
+  TempDir t("erg_tiling");
+  write(t / "job.json", job(GetParam()));
+  const std::string one = t / "ranks1";
+  Result r = run(worker_on(1, (t / "job.json") + " --out " + one + " --quiet --threads 1"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  for (int ranks : {2, 3, 4, 6}) {
+    const std::string dir = t / ("ranks" + std::to_string(ranks));
+    r = run(worker_on(ranks, (t / "job.json") + " --out " + dir + " --quiet --threads 1"));
+    ASSERT_EQ(r.code, 0) << ranks << " ranks: " << r.output;
+    expect_same_runs(one, dir, {"00000000", "00000010", "00000020", "00000030"},
+                     GetParam() + " on " + std::to_string(ranks) + " ranks");
+  }
+  // An explicit, elongated grid too.
+  const std::string strips = t / "strips";
+  r = run(worker_on(3, (t / "job.json") + " --out " + strips + " --tiles 3x1 --quiet --threads 1"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  expect_same_runs(one, strips, {"00000030"}, GetParam() + " on 3x1 tiles");
+}
+
+INSTANTIATE_TEST_SUITE_P(Transport, Tiling, ::testing::Values("EXPECTED", "STOCHASTIC"));
+
+TEST(Tiling, RestartOnAnotherRankCountContinuesBitwise) {
+  TempDir t("erg_tiling");
+  write(t / "job.json", job("STOCHASTIC"));
+  ASSERT_EQ(run(worker_on(1, (t / "job.json") + " --out " + (t / "straight") + " --quiet")).code, 0);
+  // Written by 4 ranks, resumed on 3, then on 1.
+  Result r = run(worker_on(4, (t / "job.json") + " --out " + (t / "moved") + " --steps 10 --quiet --threads 1"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(worker_on(3, "--resume " + (t / "moved") + " --steps 20 --quiet --threads 1"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(worker_on(1, "--resume " + (t / "moved") + " --steps 30 --quiet"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  expect_same_runs(t / "straight", t / "moved", {"00000020", "00000030"}, "4 -> 3 -> 1 ranks");
+}
+
+// Children (ranks) of a process.
+std::vector<pid_t> children(pid_t parent) {
+  std::vector<pid_t> out;
+  for (const auto& e : fs::directory_iterator("/proc")) {
+    const std::string name = e.path().filename().string();
+    if (name.find_first_not_of("0123456789") != std::string::npos) continue;
+    std::ifstream stat(e.path() / "stat");
+    std::string line;
+    std::getline(stat, line);
+    const size_t close = line.rfind(')');
+    if (close == std::string::npos) continue;
+    std::istringstream rest(line.substr(close + 2));
+    char state;
+    pid_t ppid = 0;
+    rest >> state >> ppid;
+    if (ppid == parent) out.push_back(static_cast<pid_t>(std::stol(name)));
+  }
+  return out;
+}
+
+TEST(Tiling, AKilledRankLeavesThePreviousSnapshotAndCheckpointIntact) {
+  TempDir t("erg_tiling");
+  std::string long_job = job("EXPECTED");
+  long_job.replace(long_job.find("\"steps\": 30, \"snapshot_every\": 10, \"checkpoint_every\": 10"), 57,
+                   "\"steps\": 100000, \"snapshot_every\": 5, \"checkpoint_every\": 5");
+  write(t / "job.json", long_job);
+  const std::string out = t / "out";
+  const pid_t mpirun = ::fork();
+  if (mpirun == 0) {
+    const std::string cmd = "exec " + worker_on(2, (t / "job.json") + " --out " + out + " --quiet --threads 1") +
+                            " > /dev/null 2>&1";
+    ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  // Wait for a few snapshots, then kill one rank in the middle of the run.
+  for (int i = 0; i < 600 && !fs::exists(out + "/snapshots/step_00000015.h5"); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(fs::exists(out + "/snapshots/step_00000015.h5")) << "the run did not get going";
+  const auto ranks = children(mpirun);
+  ASSERT_FALSE(ranks.empty());
+  ::kill(ranks.back(), SIGKILL);
+  int status = 0;
+  ::waitpid(mpirun, &status, 0);  // mpirun notices and ends the job
+  EXPECT_FALSE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "the job went on without a rank";
+  // Every file under its final name is complete and readable.
+  int checkpoints = 0, snapshots = 0;
+  for (const auto& e : fs::directory_iterator(out + "/checkpoints")) {
+    if (e.path().string().find(".tmp-") != std::string::npos) continue;
+    EXPECT_NO_THROW((void)erg::io::read_checkpoint(e.path().string())) << e.path();
+    ++checkpoints;
+  }
+  for (const auto& e : fs::directory_iterator(out + "/snapshots")) {
+    if (e.path().extension() != ".h5") continue;
+    EXPECT_NO_THROW((void)erg::io::read_snapshot(e.path().string())) << e.path();
+    ++snapshots;
+  }
+  EXPECT_GE(checkpoints, 1);
+  EXPECT_GE(snapshots, 4);
+  // And the run continues from the newest one.
+  const Result r = run(worker_on(1, "--resume " + out + " --steps 40 --quiet"));
+  EXPECT_EQ(r.code, 0) << r.output;
+}
+
+TEST(Tiling, BadTileGridsAreRefusedOnEveryRank) {
+  TempDir t("erg_tiling");
+  write(t / "job.json", job("EXPECTED"));
+  Result r = run(worker_on(4, (t / "job.json") + " --out " + (t / "a") + " --tiles 3x2 --quiet"));
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("has 6 tiles but there are 4 ranks"), std::string::npos) << r.output;
+  r = run(worker_on(4, (t / "job.json") + " --out " + (t / "b") + " --tiles 1x4 --quiet"));
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("(the widest halo)"), std::string::npos) << r.output;
+}
+
+TEST(Tiling, ErgRunStartsRanksAndReportsHaloTraffic) {
+  TempDir t("erg_tiling");
+  write(t / "job.json", job("EXPECTED"));
+  Result r = run(kErg + " run " + (t / "job.json") + " --out " + (t / "one"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(kErg + " run " + (t / "job.json") + " --out " + (t / "two") + " --ranks 2");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("2 rank(s) as 2x1 tiles"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("halo exchange:"), std::string::npos) << r.output;
+  expect_same_runs(t / "one", t / "two", {"00000030"}, "erg run --ranks 2");
+}
+
+}  // namespace
