@@ -9,7 +9,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <numeric>
 #include <iostream>
 #include <sstream>
 #include <stdexcept>
@@ -78,10 +77,7 @@ struct Context {
   int rank = 0, size = 1;
   dist::Decomposition d;
   io::TileSlab slab;
-  // Snapshot chunks: a divisor of every tile's extent, so no chunk straddles
-  // tiles or the domain's edge (one chunk per tile when tiles are equal).
-  // Parallel HDF5 1.10.8 fails, at random, writing filtered edge chunks
-  // collectively ("inflate() failed").
+  // Snapshot chunks: one per tile.
   int chunk_x = 0, chunk_y = 0;
   bool root() const { return rank == 0; }
   bool tiled() const { return size > 1 || std::getenv("ERG_DEBUG_TILED") != nullptr; }
@@ -253,8 +249,8 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
     // tile), aligned to the coarse wind cells.
     ctx.d = dist::decompose(gnx, gny, ctx.size, ctx.tiled() ? whole.tile.halo : 1, cfg.tiles_x,
                             cfg.tiles_y, whole.coarse.cx, whole.coarse.cy);
-    ctx.chunk_x = std::gcd(ctx.d.chunk_x, ctx.d.nx(ctx.d.px - 1));
-    ctx.chunk_y = std::gcd(ctx.d.chunk_y, ctx.d.ny(ctx.d.py - 1));
+    ctx.chunk_x = ctx.d.chunk_x;
+    ctx.chunk_y = ctx.d.chunk_y;
     int dims[2] = {ctx.d.px, ctx.d.py}, periods[2] = {1, 1}, coords[2] = {0, 0};
     MPI_Cart_create(world, 2, dims, periods, 0, &ctx.cart);
     MPI_Cart_coords(ctx.cart, ctx.rank, 2, coords);
