@@ -31,7 +31,8 @@ using TempDir = erg::test_support::TempDir;
 const std::string kErg = ERG_BIN;
 const std::string kWorker = ERG_WORKER_BIN;
 // As root, Open MPI wants to be told; more ranks than cores need oversubscribe.
-const std::string kMpirun = std::string(ERG_MPIEXEC) + " --allow-run-as-root --oversubscribe --bind-to none";
+const std::string kMpirun =
+    std::string(ERG_MPIEXEC) + " --allow-run-as-root --oversubscribe --bind-to none";
 
 struct Result {
   int code;
@@ -83,8 +84,8 @@ std::string worker_on(int ranks, const std::string& args) {
 }
 
 // Bitwise comparison of two runs' snapshots and checkpoints at the given steps.
-void expect_same_runs(const std::string& a, const std::string& b, const std::vector<std::string>& steps,
-                      const std::string& what) {
+void expect_same_runs(const std::string& a, const std::string& b,
+                      const std::vector<std::string>& steps, const std::string& what) {
   for (const auto& s : steps) {
     const auto sa = erg::io::read_snapshot(a + "/snapshots/step_" + s + ".h5");
     const auto sb = erg::io::read_snapshot(b + "/snapshots/step_" + s + ".h5");
@@ -97,12 +98,15 @@ void expect_same_runs(const std::string& a, const std::string& b, const std::vec
     EXPECT_EQ(sa.meta.sand_units_total, sb.meta.sand_units_total) << what << " step " << s;
     EXPECT_EQ(sa.meta.bedrock_units_total, sb.meta.bedrock_units_total) << what << " step " << s;
     EXPECT_EQ(sa.meta.airborne_units_total, sb.meta.airborne_units_total) << what << " step " << s;
-    const std::string ca = a + "/checkpoints/step_" + s + ".h5", cb = b + "/checkpoints/step_" + s + ".h5";
+    const std::string ca = a + "/checkpoints/step_" + s + ".h5",
+                      cb = b + "/checkpoints/step_" + s + ".h5";
     if (fs::exists(ca) && fs::exists(cb)) {
       const auto ka = erg::io::read_checkpoint(ca), kb = erg::io::read_checkpoint(cb);
       EXPECT_TRUE(ka.sand_units == kb.sand_units) << what << " step " << s << ": sand units";
-      EXPECT_TRUE(ka.bedrock_units == kb.bedrock_units) << what << " step " << s << ": bedrock units";
-      EXPECT_TRUE(ka.airborne_units == kb.airborne_units) << what << " step " << s << ": airborne units";
+      EXPECT_TRUE(ka.bedrock_units == kb.bedrock_units)
+          << what << " step " << s << ": bedrock units";
+      EXPECT_TRUE(ka.airborne_units == kb.airborne_units)
+          << what << " step " << s << ": airborne units";
       EXPECT_TRUE(ka.vegetation == kb.vegetation) << what << " step " << s << ": vegetation";
     }
   }
@@ -135,9 +139,11 @@ INSTANTIATE_TEST_SUITE_P(Transport, Tiling, ::testing::Values("EXPECTED", "STOCH
 TEST(Tiling, RestartOnAnotherRankCountContinuesBitwise) {
   TempDir t("erg_tiling");
   write(t / "job.json", job("STOCHASTIC"));
-  ASSERT_EQ(run(worker_on(1, (t / "job.json") + " --out " + (t / "straight") + " --quiet")).code, 0);
+  ASSERT_EQ(run(worker_on(1, (t / "job.json") + " --out " + (t / "straight") + " --quiet")).code,
+            0);
   // Written by 4 ranks, resumed on 3, then on 1.
-  Result r = run(worker_on(4, (t / "job.json") + " --out " + (t / "moved") + " --steps 10 --quiet --threads 1"));
+  Result r = run(worker_on(
+      4, (t / "job.json") + " --out " + (t / "moved") + " --steps 10 --quiet --threads 1"));
   ASSERT_EQ(r.code, 0) << r.output;
   r = run(worker_on(3, "--resume " + (t / "moved") + " --steps 20 --quiet --threads 1"));
   ASSERT_EQ(r.code, 0) << r.output;
@@ -169,14 +175,15 @@ std::vector<pid_t> children(pid_t parent) {
 TEST(Tiling, AKilledRankLeavesThePreviousSnapshotAndCheckpointIntact) {
   TempDir t("erg_tiling");
   std::string long_job = job("EXPECTED");
-  long_job.replace(long_job.find("\"steps\": 30, \"snapshot_every\": 10, \"checkpoint_every\": 10"), 57,
-                   "\"steps\": 100000, \"snapshot_every\": 5, \"checkpoint_every\": 5");
+  long_job.replace(long_job.find("\"steps\": 30, \"snapshot_every\": 10, \"checkpoint_every\": 10"),
+                   57, "\"steps\": 100000, \"snapshot_every\": 5, \"checkpoint_every\": 5");
   write(t / "job.json", long_job);
   const std::string out = t / "out";
   const pid_t mpirun = ::fork();
   if (mpirun == 0) {
-    const std::string cmd = "exec " + worker_on(2, (t / "job.json") + " --out " + out + " --quiet --threads 1") +
-                            " > /dev/null 2>&1";
+    const std::string cmd =
+        "exec " + worker_on(2, (t / "job.json") + " --out " + out + " --quiet --threads 1") +
+        " > /dev/null 2>&1";
     ::execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
     _exit(127);
   }
@@ -209,13 +216,52 @@ TEST(Tiling, AKilledRankLeavesThePreviousSnapshotAndCheckpointIntact) {
   EXPECT_EQ(r.code, 0) << r.output;
 }
 
+// A 60 m sand column in one tile spreads over the others for many rounds of
+// avalanching iterations per step while the tiles it has not reached find
+// nothing to move: they stop computing but keep refilling with the others
+// until every tile has settled (backend/cpu/avalanching.cpp). Same bits.
+TEST(Tiling, SettledTilesWaitForASpreadingColumn) {
+  TempDir t("erg_tiling");
+  write(t / "column.json", R"({"domain": {"nx": 96, "ny": 80, "cell_size_m": 1.0},
+ "layers": {"bedrock": {"fbm": {"amplitude": 4, "wavelength_m": 32, "octaves": 3}},
+            "sand": {"piles": [{"x_m": 22, "y_m": 20, "height": 60, "radius_m": 6, "shape": "CYLINDER"}]}},
+ "wind": {"constant": {"speed_mps": 1, "direction_deg": 30}},
+ "model": {"avalanche_iterations": 25, "bedrock_avalanche_iterations": 6, "abrasion_k": 0.05,
+           "bedrock_to_sand": true},
+ "run": {"steps": 20, "snapshot_every": 10}})");
+  Result r = run(worker_on(1, (t / "column.json") + " --out " + (t / "one") + " --quiet"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  for (const std::string tiles : {"2x2", "4x1"}) {
+    const std::string dir = t / tiles;
+    r = run(worker_on(
+        4, (t / "column.json") + " --out " + dir + " --tiles " + tiles + " --quiet --threads 1"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    expect_same_runs(t / "one", dir, {"00000010", "00000020"}, "column on " + tiles + " tiles");
+  }
+  // The column did cross tile edges, and one tile stayed bare (settled from
+  // the first iteration of every step: the case this test is for).
+  const auto s = erg::io::read_snapshot((t / "one") + "/snapshots/step_00000020.h5");
+  int cells[2][2] = {{0, 0}, {0, 0}};
+  for (int y = 0; y < 80; ++y)
+    for (int x = 0; x < 96; ++x)
+      cells[y / 40][x / 48] += s.sand[static_cast<size_t>(y) * 96 + x] > 0;
+  EXPECT_GT(cells[0][1], 0) << "the column did not cross into tile (1, 0)";
+  EXPECT_GT(cells[1][0], 0) << "the column did not cross into tile (0, 1)";
+  EXPECT_EQ(cells[1][1], 0) << "no tile stayed settled: the test no longer covers waiting tiles";
+}
+
 TEST(Tiling, BadTileGridsAreRefusedOnEveryRank) {
   TempDir t("erg_tiling");
   write(t / "job.json", job("EXPECTED"));
   Result r = run(worker_on(4, (t / "job.json") + " --out " + (t / "a") + " --tiles 3x2 --quiet"));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("has 6 tiles but there are 4 ranks"), std::string::npos) << r.output;
-  r = run(worker_on(4, (t / "job.json") + " --out " + (t / "b") + " --tiles 1x4 --quiet"));
+  // 32 rows in 4 tiles of 8, narrower than the halo (9 avalanching cells
+  // and one for reptation at least).
+  std::string narrow = job("EXPECTED");
+  narrow.replace(narrow.find("\"ny\": 96"), 8, "\"ny\": 32");
+  write(t / "narrow.json", narrow);
+  r = run(worker_on(4, (t / "narrow.json") + " --out " + (t / "b") + " --tiles 1x4 --quiet"));
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("(the widest halo)"), std::string::npos) << r.output;
 }

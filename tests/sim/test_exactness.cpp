@@ -158,5 +158,37 @@ TEST(Exactness, SparseAvalanchingEqualsVisitingEveryCell) {
   }
 }
 
+// Ghost-zone rounds (backend/cpu/avalanching.cpp) are execution only: a
+// refill before every iteration (one tile), rounds of 3 and of 4 (several
+// tiles: kTiledAvalancheRound), and all iterations in one round give the
+// same fields, bit for bit. A 60 m sand column needs many more iterations
+// than one round to spread, so every round length refills several times.
+TEST(Exactness, AvalanchingRoundsDoNotChangeResults) {
+  const std::string column = R"({
+    "domain": {"nx": 96, "ny": 80, "cell_size_m": 1.0},
+    "layers": {"bedrock": {"fbm": {"amplitude": 4, "wavelength_m": 32, "octaves": 3}},
+               "sand": {"piles": [{"x_m": 40, "y_m": 40, "height": 60, "radius_m": 6, "shape": "CYLINDER"}],
+                        "uniform": {"min": 0, "max": 1.5}},
+               "vegetation": {"uniform": {"min": 0, "max": 0.6}}},
+    "wind": {"constant": {"speed_mps": 6, "direction_deg": 30}},
+    "model": {"avalanche_iterations": 25, "bedrock_avalanche_iterations": 6, "abrasion_k": 0.05,
+              "bedrock_to_sand": true},
+    "run": {"steps": 20}})";
+  auto run = [&](int round) {
+    Placement place;
+    place.avalanche_round = round;
+    Simulation sim(spec_from(column), ".", cpu_threads(2), place);
+    for (int s = 0; s < 20; ++s) sim.step();
+    return std::make_pair(sim.state(), sim.times().avalanche_iterations);
+  };
+  const auto [per_iteration, moved] = run(1);
+  EXPECT_GT(moved, 20 * kTiledAvalancheRound) << "avalanching too short to need several rounds";
+  for (const int round : {3, kTiledAvalancheRound, 0}) {
+    const auto [state, moved_too] = run(round);
+    expect_bitwise_equal(per_iteration, state, "rounds of " + std::to_string(round));
+    EXPECT_EQ(moved, moved_too) << "rounds of " << round;
+  }
+}
+
 }  // namespace
 }  // namespace erg::test

@@ -2,6 +2,12 @@
 //
 //   erg-bench --scene A|B --size 512|1024|2048|4096 [--steps N] [--warmup W]
 //             [--threads T] [--backend auto|cpu|cuda] [--iterations I] [--json]
+//             [--ranks P [--tiles PXxPY]] [--scaling]
+//
+// --ranks P runs the scene on P MPI ranks (erg-bench starts mpirun itself),
+// one tile each, and reports the halo messages and bytes per rank and step.
+// --scaling runs it on 1 rank and on P ranks with the same threads per rank
+// and reports the strong-scaling efficiency T1 / (P TP).
 //
 // Domain 1024 m x 1024 m, wind along +x, no bedrock relief, vegetation or
 // abrasion; cell size 1024 m / size; avalanching 13/25/50/100 iterations.
@@ -10,11 +16,15 @@
 // Prints ms per step, per-stage ms, cell updates per second and a roofline
 // estimate: the bytes the pipeline must move per step divided by the memory
 // bandwidth measured here with a STREAM-like triad.
+#include <mpi.h>
 #include <omp.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 #include <sstream>
@@ -24,6 +34,7 @@
 
 #include "job/spec.h"
 #include "sim/simulation.h"
+#include "sim/tiling.h"
 
 namespace {
 
@@ -38,6 +49,10 @@ struct Args {
   int iterations = -1;
   std::string backend = "auto";
   bool json = false;
+  int ranks = 0;      // 0: this process alone
+  std::string tiles;  // --tiles PXxPY
+  int tiles_x = 0, tiles_y = 0;
+  bool scaling = false;
 };
 
 Args parse(int argc, char** argv) {
@@ -64,6 +79,12 @@ Args parse(int argc, char** argv) {
       a.backend = next();
     else if (f == "--json")
       a.json = true;
+    else if (f == "--ranks")
+      a.ranks = std::stoi(next());
+    else if (f == "--tiles")
+      a.tiles = next();
+    else if (f == "--scaling")
+      a.scaling = true;
     else
       throw std::invalid_argument(f + ": unknown flag");
   }
@@ -71,6 +92,20 @@ Args parse(int argc, char** argv) {
   if (a.size != 512 && a.size != 1024 && a.size != 2048 && a.size != 4096)
     throw std::invalid_argument("--size must be 512, 1024, 2048 or 4096");
   if (a.steps < 1) throw std::invalid_argument("--steps must be >= 1");
+  if (a.ranks < 0 || a.ranks > 4096) throw std::invalid_argument("--ranks must be in [1, 4096]");
+  if (!a.tiles.empty()) {
+    if (a.ranks < 1) throw std::invalid_argument("--tiles needs --ranks P");
+    int tx = 0, ty = 0;
+    char extra = 0;
+    if (std::sscanf(a.tiles.c_str(), "%dx%d%c", &tx, &ty, &extra) != 2 || tx < 1 || ty < 1 ||
+        tx * ty != a.ranks)
+      throw std::invalid_argument("--tiles must be PXxPY with PX * PY = --ranks, got '" + a.tiles +
+                                  "'");
+    a.tiles_x = tx;
+    a.tiles_y = ty;
+  }
+  if (a.scaling && a.ranks < 2)
+    throw std::invalid_argument("--scaling needs --ranks P with P >= 2");
   return a;
 }
 
@@ -140,6 +175,90 @@ ByteModel byte_model() {
   return m;
 }
 
+// The command line that runs this benchmark again under mpirun on `ranks`
+// ranks (ERG_BENCH_CHILD marks the children), with `extra` flags.
+std::vector<std::string> mpirun_argv(const Args& a, int ranks, int threads, bool json) {
+  const char* mpirun = std::getenv("ERG_MPIRUN");
+  std::vector<std::string> v = {
+      mpirun ? mpirun : "mpirun", "-n", std::to_string(ranks), "--bind-to", "none", "-x",
+      "ERG_BENCH_CHILD=1"};
+  if (static_cast<unsigned>(ranks) > std::max(1u, static_cast<unsigned>(omp_get_num_procs())))
+    v.push_back("--oversubscribe");
+  char self[4096];
+  const ssize_t n = ::readlink("/proc/self/exe", self, sizeof self - 1);
+  v.push_back(n > 0 ? std::string(self, static_cast<size_t>(n)) : std::string("erg-bench"));
+  v.insert(v.end(),
+           {"--scene", a.scene, "--size", std::to_string(a.size), "--steps",
+            std::to_string(a.steps), "--warmup", std::to_string(a.warmup), "--threads",
+            std::to_string(threads), "--backend", a.backend, "--ranks", std::to_string(ranks)});
+  if (a.iterations >= 0) v.insert(v.end(), {"--iterations", std::to_string(a.iterations)});
+  if (!a.tiles.empty() && ranks == a.ranks) v.insert(v.end(), {"--tiles", a.tiles});
+  if (json) v.push_back("--json");
+  return v;
+}
+
+std::string shell_quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+// Runs a child benchmark; returns its JSON line (throws if it failed).
+std::string run_child(const std::vector<std::string>& argv) {
+  std::string cmd;
+  for (const auto& s : argv) cmd += shell_quote(s) + " ";
+  FILE* p = ::popen(cmd.c_str(), "r");
+  if (!p) throw std::runtime_error("cannot start " + argv[0]);
+  std::string out;
+  char buf[4096];
+  while (size_t n = std::fread(buf, 1, sizeof buf, p)) out.append(buf, n);
+  const int rc = ::pclose(p);
+  const size_t j = out.rfind("{\"scene\"");
+  if (rc != 0 || j == std::string::npos)
+    throw std::runtime_error("benchmark run failed (" + cmd + "):\n" + out);
+  return out.substr(j, out.find('\n', j) - j);
+}
+
+double json_number(const std::string& json, const std::string& key) {
+  const size_t k = json.find("\"" + key + "\":");
+  if (k == std::string::npos) throw std::runtime_error("no " + key + " in " + json);
+  return std::strtod(json.c_str() + k + key.size() + 3, nullptr);
+}
+
+void set_root_env() {
+  // Containers often run as root, which mpirun refuses without these.
+  if (::geteuid() == 0) {
+    ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+    ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+  }
+}
+
+// --scaling: the scene on 1 rank and on P ranks, the same threads per rank.
+int scaling(const Args& a) {
+  const int cores = std::max(1, omp_get_num_procs());
+  const int threads = a.threads > 0 ? a.threads : std::max(1, cores / a.ranks);
+  set_root_env();
+  const std::string one = run_child(mpirun_argv(a, 1, threads, true));
+  const std::string many = run_child(mpirun_argv(a, a.ranks, threads, true));
+  const double t1 = json_number(one, "ms_per_step"), tp = json_number(many, "ms_per_step");
+  const double speedup = t1 / tp, efficiency = speedup / a.ranks;
+  if (a.json) {
+    std::cout << "{\"one_rank\":" << one << ",\"ranks\":" << many << ",\"speedup\":" << speedup
+              << ",\"efficiency\":" << efficiency << "}\n";
+  } else {
+    std::cout.precision(4);
+    std::cout << std::fixed << "scene " << a.scene << " " << a.size << "x" << a.size
+              << ", strong scaling with " << threads << " thread(s) per rank\n"
+              << "  1 rank:  " << t1 << " ms/step\n"
+              << "  " << a.ranks << " ranks: " << tp << " ms/step ("
+              << json_number(many, "halo_messages_per_step") << " halo messages, "
+              << json_number(many, "halo_bytes_per_step") / 1e6 << " MB per rank and step)\n"
+              << "  speedup " << speedup << ", efficiency T1/(P TP) = " << 100 * efficiency
+              << " %\n";
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -150,38 +269,98 @@ int main(int argc, char** argv) {
     std::cerr
         << "erg-bench: " << e.what() << "\n"
         << "usage: erg-bench --scene A|B --size 512|1024|2048|4096 [--steps N] [--warmup W]\n"
-        << "                 [--threads T] [--backend auto|cpu|cuda] [--iterations I] [--json]\n";
+        << "                 [--threads T] [--backend auto|cpu|cuda] [--iterations I] [--json]\n"
+        << "                 [--ranks P [--tiles PXxPY]] [--scaling]\n";
     return 2;
   }
+  const bool child = std::getenv("ERG_BENCH_CHILD") != nullptr;
+  if (a.ranks >= 1 && !child) {
+    try {
+      if (a.scaling) return scaling(a);
+      const int cores = std::max(1, omp_get_num_procs());
+      const int threads = a.threads > 0 ? a.threads : std::max(1, cores / a.ranks);
+      set_root_env();
+      const std::vector<std::string> v = mpirun_argv(a, a.ranks, threads, a.json);
+      std::vector<char*> cv;
+      for (const auto& s : v) cv.push_back(const_cast<char*>(s.c_str()));
+      cv.push_back(nullptr);
+      ::execvp(cv[0], cv.data());
+      throw std::runtime_error("cannot run " + v[0] + ": " + std::strerror(errno));
+    } catch (const std::exception& e) {
+      std::cerr << "erg-bench: " << e.what() << "\n";
+      return 1;
+    }
+  }
+
+  int provided = 0;
+  MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
+  int rank = 0, nranks = 1;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &nranks);
   const erg::v1::JobSpec spec = scene_spec(a);
   erg::RunOptions opt;
   opt.threads = a.threads > 0 ? a.threads : omp_get_max_threads();
   opt.backend = a.backend == "cpu"    ? erg::BackendKind::kCpu
                 : a.backend == "cuda" ? erg::BackendKind::kCuda
                                       : erg::BackendKind::kAuto;
-  erg::Simulation sim(spec, ".", opt);
+  std::unique_ptr<erg::Tiling> tiling;
+  std::unique_ptr<erg::Simulation> simp;
+  try {
+    tiling = erg::make_tiling(spec, MPI_COMM_WORLD, a.tiles_x, a.tiles_y);
+    simp = std::make_unique<erg::Simulation>(spec, ".", opt, tiling->place);
+  } catch (const std::exception& e) {
+    if (rank == 0) std::cerr << "erg-bench: " << e.what() << "\n";
+    MPI_Finalize();
+    return 2;
+  }
+  erg::Simulation& sim = *simp;
+  const bool cpu = sim.backend().name() == "cpu";
+  // The run takes as long as its slowest rank.
+  auto slowest = [](double v) {
+    MPI_Allreduce(MPI_IN_PLACE, &v, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    return v;
+  };
   // The first steps relax the random initial sand (every avalanching
   // iteration moves sand everywhere): reported apart from the steady steps.
+  MPI_Barrier(MPI_COMM_WORLD);
   const auto tw = Clock::now();
   for (int i = 0; i < a.warmup; ++i) sim.step();
   sim.backend().synchronize();
   const double warmup_ms =
-      a.warmup > 0 ? std::chrono::duration<double, std::milli>(Clock::now() - tw).count() / a.warmup
-                   : 0.0;
+      a.warmup > 0
+          ? slowest(std::chrono::duration<double, std::milli>(Clock::now() - tw).count()) / a.warmup
+          : 0.0;
   const erg::StageTimes before = sim.times();
+  const erg::dist::Exchange::Stats halo0 = sim.exchange().stats();
+  MPI_Barrier(MPI_COMM_WORLD);
   const auto t0 = Clock::now();
   for (int i = 0; i < a.steps; ++i) sim.step();
   sim.backend().synchronize();
-  const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  const double total_ms =
+      slowest(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
   const erg::StageTimes& after = sim.times();
+  const erg::dist::Exchange::Stats halo1 = sim.exchange().stats();
+  std::array<double, erg::kStageCount> stage_ms{};
+  for (int k = 0; k < erg::kStageCount; ++k)
+    stage_ms[static_cast<size_t>(k)] =
+        slowest((after.ms[static_cast<size_t>(k)] - before.ms[static_cast<size_t>(k)]) / a.steps);
+  const double halo_messages =
+      slowest(static_cast<double>(halo1.messages - halo0.messages) / a.steps);
+  const double halo_bytes = slowest(static_cast<double>(halo1.bytes - halo0.bytes) / a.steps);
+  // Iterations that moved sand anywhere: every tile runs as many as the
+  // most active one (they exchange in rounds together).
+  const double iters_per_step = slowest(
+      static_cast<double>(after.avalanche_iterations - before.avalanche_iterations) / a.steps);
+  // Triad bandwidth only alone: ranks sharing a node share its bandwidth.
+  const double bandwidth = cpu && nranks == 1 ? triad_bandwidth(opt.threads) : 0.0;
+  if (rank != 0) {
+    MPI_Finalize();
+    return 0;
+  }
 
   const double cells = static_cast<double>(a.size) * a.size;
   const double ms_per_step = total_ms / a.steps;
-  const double iters_per_step =
-      static_cast<double>(after.avalanche_iterations - before.avalanche_iterations) / a.steps;
   const int iterations = static_cast<int>(spec.model().avalanche_iterations());
-  const bool cpu = sim.backend().name() == "cpu";
-  const double bandwidth = cpu ? triad_bandwidth(opt.threads) : 0.0;
   const ByteModel bm = byte_model();
   // The iterations that ran: those that moved sand, plus the one that found
   // nothing to move (avalanching stops there; later ones would be identities).
@@ -189,21 +368,23 @@ int main(int argc, char** argv) {
   const double bytes_per_step =
       cells * (bm.per_cell_fixed + bm.per_cell_iteration * iterations_run);
   const double roofline_ms = bandwidth > 0 ? 1e3 * bytes_per_step / bandwidth : 0.0;
+  const std::string tiles = std::to_string(tiling->d.px) + "x" + std::to_string(tiling->d.py);
 
   std::ostringstream o;
   o.precision(4);
   o << std::fixed;
   o << "{\"scene\":\"" << a.scene << "\",\"size\":" << a.size
     << ",\"cell_size_m\":" << 1024.0 / a.size << ",\"steps\":" << a.steps << ",\"backend\":\""
-    << sim.backend().name() << "\",\"threads\":" << (cpu ? opt.threads : 0)
-    << ",\"avalanche_iterations\":" << iterations
+    << sim.backend().name() << "\",\"ranks\":" << nranks << ",\"tiles\":\"" << tiles
+    << "\",\"threads\":" << (cpu ? opt.threads : 0) << ",\"avalanche_iterations\":" << iterations
     << ",\"avalanche_iterations_moving_per_step\":" << iters_per_step
     << ",\"ms_per_step\":" << ms_per_step << ",\"warmup_steps\":" << a.warmup
     << ",\"warmup_ms_per_step\":" << warmup_ms << ",\"cell_updates_per_s\":" << std::scientific
-    << cells * a.steps / (total_ms * 1e-3) << std::fixed << ",\"stage_ms\":{";
+    << cells * a.steps / (total_ms * 1e-3) << std::fixed
+    << ",\"halo_messages_per_step\":" << halo_messages << ",\"halo_bytes_per_step\":" << halo_bytes
+    << ",\"stage_ms\":{";
   for (int k = 0; k < erg::kStageCount; ++k)
-    o << (k ? "," : "") << "\"" << erg::kStageNames[k]
-      << "\":" << (after.ms[static_cast<size_t>(k)] - before.ms[static_cast<size_t>(k)]) / a.steps;
+    o << (k ? "," : "") << "\"" << erg::kStageNames[k] << "\":" << stage_ms[static_cast<size_t>(k)];
   o << "},\"bytes_per_step_model\":" << std::scientific << bytes_per_step << std::fixed
     << ",\"memory_bandwidth_gbs\":" << bandwidth / 1e9
     << ",\"roofline_ms_per_step\":" << roofline_ms
@@ -212,21 +393,24 @@ int main(int argc, char** argv) {
     std::cout << o.str() << "\n";
   } else {
     std::cout << "scene " << a.scene << " " << a.size << "x" << a.size << " (" << 1024.0 / a.size
-              << " m cells), " << sim.backend().name() << ", " << (cpu ? opt.threads : 0)
-              << " threads\n"
+              << " m cells), " << sim.backend().name() << ", " << nranks << " rank(s) as " << tiles
+              << " tiles, " << (cpu ? opt.threads : 0) << " threads per rank\n"
               << "  " << ms_per_step << " ms/step, " << cells * a.steps / (total_ms * 1e-3) / 1e6
               << " Mcell-updates/s; avalanching moved sand in " << iters_per_step << " of "
               << iterations << " iterations per step\n"
               << "  first " << a.warmup << " steps (relaxing the random sand): " << warmup_ms
               << " ms/step\n";
+    if (nranks > 1)
+      std::cout << "  halo exchange: " << halo_messages << " messages, " << halo_bytes / 1e6
+                << " MB per rank and step (the slowest rank's stage times below)\n";
     for (int k = 0; k < erg::kStageCount; ++k)
-      std::cout << "  " << erg::kStageNames[k] << ": "
-                << (after.ms[static_cast<size_t>(k)] - before.ms[static_cast<size_t>(k)]) / a.steps
+      std::cout << "  " << erg::kStageNames[k] << ": " << stage_ms[static_cast<size_t>(k)]
                 << " ms\n";
-    if (cpu)
+    if (bandwidth > 0)
       std::cout << "  roofline: " << bytes_per_step / 1e6 << " MB/step at " << bandwidth / 1e9
                 << " GB/s = " << roofline_ms << " ms/step; erg is " << ms_per_step / roofline_ms
                 << "x from it\n";
   }
+  MPI_Finalize();
   return 0;
 }

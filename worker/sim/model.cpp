@@ -12,7 +12,8 @@ namespace {
 constexpr double kDeg = 3.14159265358979323846 / 180.0;
 }
 
-Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0, int avalanche_round) {
+Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
+                 int avalanche_round) {
   const auto& m = spec.model();
   const double l = spec.domain().cell_size_m();
   Model md;

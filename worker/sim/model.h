@@ -23,6 +23,15 @@ struct CoarseGrid {
   double sigma_m[2] = {0, 0};  // Gaussian sigma of the large and small scales
 };
 
+// Avalanching iterations per round when tiles exchange over MPI. After the
+// first steps relax the initial sand, avalanching moves sand in one or two
+// iterations per step and the next finds nothing to move, so a round of 4
+// usually ends the step's avalanching with one logical or and no refill. Its
+// halo, 2 * 4 + 1 = 9 cells, is what the tiles exchange before reptation
+// (with all of N = 50 iterations in one round it would be 101). Execution
+// only: results are identical for any round length.
+constexpr int kTiledAvalancheRound = 4;
+
 struct Model {
   TileGeom tile;  // the tile this process owns, with its halo
   std::uint64_t seed = 0;
@@ -49,10 +58,11 @@ struct Model {
   int halo_saltation() const {  // hop reach + bilinear footprint
     return static_cast<int>(std::ceil(saltation.max_hop_m / tile.cell_m)) + 2;
   }
-  // Avalanching iterations between two exchanges of the avalanching layers:
-  // 0 means all of a step's iterations (one exchange per step, whatever their
-  // number: several tiles); 1 refills the ghosts before every iteration (one
-  // tile, where a refill is a local copy and a wide halo only adds work).
+  // Avalanching iterations between two refills of the avalanching layer's
+  // ghosts: 1 on one tile (a refill is a local copy, a wide halo only adds
+  // work); kTiledAvalancheRound with several; 0 means all of a step's
+  // iterations in one round (one exchange whatever their number, but a halo
+  // of 2N + 1 cells, computed redundantly by both neighbours).
   int avalanche_round = 0;
   int avalanche_round_for(int iterations) const {
     return avalanche_round <= 0 ? iterations : std::min(avalanche_round, iterations);
@@ -66,8 +76,8 @@ struct Model {
 
 // Resolves a defaults-filled, validated spec for a tile of `nx x ny` owned
 // cells at global offset (x0, y0); the halo is chosen to cover every stage.
-// avalanche_round: see Model (1 for one tile, 0 for several).
-Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0, int avalanche_round = 1);
-
+// avalanche_round: see Model.
+Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
+                 int avalanche_round = 1);
 
 }  // namespace erg

@@ -14,7 +14,7 @@
 #include <stdexcept>
 
 #include "dist/decomposition.h"
-#include "dist/mpi_exchange.h"
+#include "sim/tiling.h"
 
 namespace erg {
 
@@ -80,7 +80,7 @@ struct Context {
   // Snapshot chunks: one per tile.
   int chunk_x = 0, chunk_y = 0;
   bool root() const { return rank == 0; }
-  bool tiled() const { return size > 1 || std::getenv("ERG_DEBUG_TILED") != nullptr; }
+  bool tiled() const { return size > 1; }
 };
 
 void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progress& progress,
@@ -238,46 +238,23 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
 
   // ---- every rank: the tile grid, its tile, its simulation -----------------
   std::unique_ptr<Simulation> sim;
-  std::unique_ptr<dist::Exchange> exchange;
+  std::unique_ptr<Tiling> tiling;
   try {
     erg::v1::JobSpec spec = job::parse_json(spec_json, "job");
     job::apply_defaults(spec);
-    const int gnx = static_cast<int>(spec.domain().nx()), gny = static_cast<int>(spec.domain().ny());
-    const int round = ctx.tiled() ? 0 : 1;
-    const Model whole = make_model(spec, gnx, gny, 0, 0, round);
-    // Tiles at least as wide as the halo (neighbours' ghosts come from one
-    // tile), aligned to the coarse wind cells.
-    ctx.d = dist::decompose(gnx, gny, ctx.size, ctx.tiled() ? whole.tile.halo : 1, cfg.tiles_x,
-                            cfg.tiles_y, whole.coarse.cx, whole.coarse.cy);
+    tiling = make_tiling(spec, world, cfg.tiles_x, cfg.tiles_y);
+    ctx.cart = tiling->cart;
+    ctx.d = tiling->d;
+    ctx.slab = tiling->slab;
     ctx.chunk_x = ctx.d.chunk_x;
     ctx.chunk_y = ctx.d.chunk_y;
-    int dims[2] = {ctx.d.px, ctx.d.py}, periods[2] = {1, 1}, coords[2] = {0, 0};
-    MPI_Cart_create(world, 2, dims, periods, 0, &ctx.cart);
-    MPI_Cart_coords(ctx.cart, ctx.rank, 2, coords);
-    ctx.slab = {ctx.d.x0(coords[0]), ctx.d.y0(coords[1]), ctx.d.nx(coords[0]), ctx.d.ny(coords[1])};
-    MPI_Comm node;
-    MPI_Comm_split_type(world, MPI_COMM_TYPE_SHARED, ctx.rank, MPI_INFO_NULL, &node);
-    Placement place;
-    MPI_Comm_rank(node, &place.local_rank);  // GPU: local_rank % devices
-    MPI_Comm_free(&node);
-    place.x0 = ctx.slab.x0;
-    place.y0 = ctx.slab.y0;
-    place.nx = ctx.slab.nx;
-    place.ny = ctx.slab.ny;
-    place.avalanche_round = round;
-    if (ctx.tiled()) {
-      const Model tile = make_model(spec, place.nx, place.ny, place.x0, place.y0, round);
-      exchange = std::make_unique<dist::MpiExchange>(ctx.cart, ctx.d, tile.tile, whole.coarse.cx,
-                                                     whole.coarse.cy);
-      place.exchange = exchange.get();
-    }
     if (cfg.resume) {
       io::Checkpoint c = ctx.tiled() ? io::read_checkpoint_parallel(ctx.cart, checkpoint, ctx.slab)
                                      : io::read_checkpoint(checkpoint);
       c.job_spec_json = spec_json;  // with this run's overrides
-      sim = std::make_unique<Simulation>(c, cfg.options, place);
+      sim = std::make_unique<Simulation>(c, cfg.options, tiling->place);
     } else {
-      sim = std::make_unique<Simulation>(spec, base_dir, cfg.options, place);
+      sim = std::make_unique<Simulation>(spec, base_dir, cfg.options, tiling->place);
     }
   } catch (const std::exception& e) {
     // Every rank decides the same for a bad grid or spec; anything else is
@@ -305,8 +282,8 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
       if (cfg.resume && !cfg.quiet)
         std::cerr << "erg: resuming " << cfg.out_dir << " at step " << sim->step_index() << "\n";
       progress.emit("{\"event\":\"start\",\"step\":" + std::to_string(sim->step_index()) +
-                    ",\"steps\":" + std::to_string(steps) + ",\"backend\":\"" + sim->backend().name() +
-                    "\",\"nx\":" + std::to_string(sim->model().tile.gnx) +
+                    ",\"steps\":" + std::to_string(steps) + ",\"backend\":\"" +
+                    sim->backend().name() + "\",\"nx\":" + std::to_string(sim->model().tile.gnx) +
                     ",\"ny\":" + std::to_string(sim->model().tile.gny) +
                     ",\"ranks\":" + std::to_string(ctx.size) + ",\"tiles\":\"" +
                     std::to_string(ctx.d.px) + "x" + std::to_string(ctx.d.py) + "\"}");

@@ -16,7 +16,6 @@ double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-
 events::Brush brush_of(const erg::v1::Brush& b, const Model& m) {
   return {b.x_m(),
           b.y_m(),
@@ -34,11 +33,12 @@ TileState initial_state(const erg::v1::JobSpec& spec, const Model& model,
   s.allocate(model.tile);
   using init::LayerKind;
   const auto& L = spec.layers();
-  set_owned_cells(s.bedrock,
-             init::generate_layer(L.bedrock(), LayerKind::kBedrock, spec, model.tile, base_dir),
-             [](double m) { return m_to_units(m); });
-  set_owned_cells(s.sand, init::generate_layer(L.sand(), LayerKind::kSand, spec, model.tile, base_dir),
-             [](double m) { return m_to_units(std::max(0.0, m)); });
+  set_owned_cells(
+      s.bedrock, init::generate_layer(L.bedrock(), LayerKind::kBedrock, spec, model.tile, base_dir),
+      [](double m) { return m_to_units(m); });
+  set_owned_cells(s.sand,
+                  init::generate_layer(L.sand(), LayerKind::kSand, spec, model.tile, base_dir),
+                  [](double m) { return m_to_units(std::max(0.0, m)); });
   set_owned_cells(
       s.vegetation,
       init::generate_layer(L.vegetation(), LayerKind::kVegetation, spec, model.tile, base_dir),
@@ -51,7 +51,8 @@ TileState initial_state(const erg::v1::JobSpec& spec, const Model& model,
 }
 
 void Simulation::place_tile(const Placement& place) {
-  const int gnx = static_cast<int>(spec_.domain().nx()), gny = static_cast<int>(spec_.domain().ny());
+  const int gnx = static_cast<int>(spec_.domain().nx()),
+            gny = static_cast<int>(spec_.domain().ny());
   if (place.exchange) {
     exchange_ = place.exchange;
   } else {
@@ -59,8 +60,9 @@ void Simulation::place_tile(const Placement& place) {
     exchange_ = own_exchange_.get();
   }
   local_rank_ = place.local_rank;
-  // Several tiles: one exchange per step for all avalanching iterations.
-  const int round = place.avalanche_round >= 0 ? place.avalanche_round : exchange_->tiles() > 1 ? 0 : 1;
+  const int round = place.avalanche_round >= 0 ? place.avalanche_round
+                    : exchange_->tiles() > 1   ? kTiledAvalancheRound
+                                               : 1;
   if (place.nx > 0)
     model_ = make_model(spec_, place.nx, place.ny, place.x0, place.y0, round);
   else

@@ -18,10 +18,10 @@ namespace erg {
 // Where a simulation's tile sits in the domain, and how it reaches the other
 // tiles. The default is one tile that is the whole torus.
 struct Placement {
-  int x0 = 0, y0 = 0, nx = 0, ny = 0;     // owned cells; nx = 0: the whole domain
-  dist::Exchange* exchange = nullptr;     // null: the periodic wrap of one tile
-  int local_rank = 0;                     // picks the GPU
-  int avalanche_round = -1;               // see Model; -1: 0 with several tiles, else 1
+  int x0 = 0, y0 = 0, nx = 0, ny = 0;  // owned cells; nx = 0: the whole domain
+  dist::Exchange* exchange = nullptr;  // null: the periodic wrap of one tile
+  int local_rank = 0;                  // picks the GPU
+  int avalanche_round = -1;            // see Model; -1: 1 on one tile, else kTiledAvalancheRound
 };
 
 struct RunOptions {

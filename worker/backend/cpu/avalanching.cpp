@@ -10,9 +10,12 @@
 // its j-th iteration runs on the tile grown by 2(R - j) cells, so after R
 // iterations the owned cells are exact, with no exchange in between. Ghost
 // cells are recomputed exactly as their owners compute them (same inputs,
-// same functions). With several tiles a round is all N iterations of a step
-// (one exchange per step, whatever N: the one before reptation); one tile
-// refills its ghosts, a local copy, before every iteration (R = 1).
+// same functions). With several tiles a round is kTiledAvalancheRound
+// iterations (sim/model.h): the first round's ghosts come with the exchange
+// before reptation, and at every later round boundary the tiles first agree
+// (one logical or) whether any of them still has something to move, so a
+// settled terrain (most steps, after the first few) costs no refill at all.
+// One tile refills its ghosts, a local copy, before every iteration (R = 1).
 //
 // Work is tracked in segments of 64 cells of a row. After the first
 // iteration, which visits every cell, an iteration visits only the segments
@@ -21,14 +24,17 @@
 // cell of a donor. Everywhere else the iteration is the identity, so the
 // result is exactly that of visiting every cell, at a fraction of the cost
 // once the terrain is mostly settled. Iterations stop once nothing moved and
-// nothing can move later (on this tile's region: no communication).
+// nothing can move later: on one tile at once, with several at the end of
+// the round in which every tile has found so (results do not depend on it:
+// the skipped iterations are identities).
+#include "stages/avalanching.h"
+
 #include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <vector>
 
 #include "backend/cpu/cpu_backend.h"
-#include "stages/avalanching.h"
 
 namespace erg::cpu {
 
@@ -156,10 +162,20 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
   // Segment (r, s) covers row r - e, columns [s * 64 - e, (s + 1) * 64 - e).
   std::vector<std::uint8_t> visit(nseg, 1), positive(nseg, 0), exchange(nseg, 0), changed(nseg, 0);
   int moved_iterations = 0;
+  // With several tiles a tile that finds nothing left to move still takes
+  // part in the refills until every tile has found so: a neighbour's sand
+  // may yet flow across its edge in a later round.
+  const bool alone = ex_.tiles() == 1;
+  bool stopped_here = false;  // nothing moves here before the round ends
+  bool no_donors = false;     // ... nor in any later step on this terrain
   for (int it = 1; it <= iterations; ++it) {
     const float kc = avalanching::kc_for(it, iterations, m_.kc, m_.kc_damped);
     const int j = (it - 1) % round + 1;  // iteration within the round
     if (j == 1 && it > 1) {
+      if (!alone) {
+        if (!ex_.any(!stopped_here)) break;
+        stopped_here = false;
+      }
       // A new round: refill the ghosts of the layer that moved, recompute
       // their heights, and revisit every cell that reads them.
       ex_.fill(target, e + 1);
@@ -170,11 +186,11 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
       for (int r = 0; r < rows; ++r)
         for (int s = 0; s < segs; ++s) {
           const int y = r - e, x0 = s * kSegment - e, x1 = x0 + kSegment;
-          const bool near_edge =
-              y < e + 2 || y >= ny - e - 2 || x0 < e + 2 || x1 > nx - e - 2;
+          const bool near_edge = y < e + 2 || y >= ny - e - 2 || x0 < e + 2 || x1 > nx - e - 2;
           if (near_edge) visit[static_cast<size_t>(r) * segs + s] = 1;
         }
     }
+    if (stopped_here) continue;                                // until the round ends
     const int grow1 = 2 * (round - j) + 1, grow2 = grow1 - 1;  // pass 1, pass 2
 
     // Pass 1: fractions where heights may have changed, or donors remain.
@@ -196,11 +212,13 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
         any_positive = any_positive || positive[k];
       }
     }
-    if (!any_positive) {
+    no_donors = !any_positive;
+    if (no_donors) {
       // Every f is 0: nothing exceeds repose (or nothing is available), for
       // any k_c. This and every later iteration are the identity.
-      if (settled) *settled = true;
-      break;
+      stopped_here = true;
+      if (alone) break;
+      continue;
     }
 
     // Pass 2: exchanges within one cell of a donor (it reads f only inside
@@ -219,11 +237,10 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
         const int x0 = std::max(s * kSegment - e, -grow2);
         const int x1 = std::min((s + 1) * kSegment - e, nx + grow2);
         if (x0 >= x1) continue;
-        const bool active =
-            bedrock ? exchange_segment<true>(h_a_.row(y), nullptr, tan_b, frac_.row(y), st, x0, x1,
-                                             gain, loss)
-                    : exchange_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f, frac_.row(y), st,
-                                              x0, x1, gain, loss);
+        const bool active = bedrock ? exchange_segment<true>(h_a_.row(y), nullptr, tan_b,
+                                                             frac_.row(y), st, x0, x1, gain, loss)
+                                    : exchange_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f,
+                                                              frac_.row(y), st, x0, x1, gain, loss);
         if (!active) continue;
         // Pass 2 reads only heights and fractions, so the layers can be
         // updated in place.
@@ -248,7 +265,11 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
       bool larger_kc_later = false;
       for (int j = it + 1; j <= iterations; ++j)
         larger_kc_later |= avalanching::kc_for(j, iterations, m_.kc, m_.kc_damped) > kc;
-      if (!larger_kc_later) break;
+      if (!larger_kc_later) {
+        stopped_here = true;
+        if (alone) break;
+        continue;
+      }
       visit = positive;
       if (m_.avalanche_everywhere) std::fill(visit.begin(), visit.end(), 1);
       continue;
@@ -276,6 +297,7 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
     for (size_t k = 0; k < nseg; ++k)
       visit[k] |= positive[k] | static_cast<std::uint8_t>(m_.avalanche_everywhere);
   }
+  if (settled) *settled = no_donors;
   return moved_iterations;
 }
 

@@ -2,16 +2,19 @@
 // backend/cpu/avalanching.cpp: every iteration is two gather passes over
 // double-buffered heights. Pass 1 (avalanching::donor) gives each donor its
 // fraction and the total it sends; pass 2 (avalanching::inflow) has each
-// receiver recompute what its neighbours send it. As on the CPU, iteration k
-// runs on the tile grown by 2 (N - k) cells, inside the halo filled before
-// reptation, so no exchange is needed between iterations.
+// receiver recompute what its neighbours send it. As on the CPU, iterations
+// run in rounds of R (Model::avalanche_round_for): the j-th iteration of a
+// round runs on the tile grown by 2 (R - j) cells, and a new round refills
+// the ghosts of the layer that moves.
 //
-// The CPU stops early once nothing moved and nothing can move later. Here all
-// iterations run (no read-back per iteration): once nothing moves, every
-// donor has f = 0 and out = 0, so pass 2 is the identity and the remaining
-// iterations leave the state unchanged. Each iteration sets a device flag when
-// any donor sends sand; the flags are read back once, and the count of set
-// flags is the CPU's count of iterations that moved sand.
+// The CPU stops early once nothing moved and nothing can move later. One
+// tile here runs all iterations (no read-back per iteration): once nothing
+// moves, every donor has f = 0 and out = 0, so pass 2 is the identity and the
+// remaining iterations leave the state unchanged. Each iteration sets a
+// device flag when any donor sends sand; the flags are read back once, and
+// the count of set flags is the CPU's count of iterations that moved sand.
+// Several tiles read back, at each round boundary, whether the last
+// iteration had any donor at all, and stop when no tile had (as the CPU).
 #include <vector>
 
 #include "backend/cuda/cuda_backend.h"
@@ -36,7 +39,7 @@ __global__ void level0_kernel(TileGeom g, int grow, bool bedrock_only, const uni
 template <bool kBedrock>
 __global__ void donor_kernel(TileGeom g, int grow, Offsets off, const float* h, const float* tan_l,
                              float tan_l_const, const units_t* sand, float kc, float* frac,
-                             units_t* out, int* moved) {
+                             units_t* out, int* moved, int* donors) {
   int x, y;
   if (!grown_cell(g, grow, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
@@ -47,16 +50,18 @@ __global__ void donor_kernel(TileGeom g, int grow, Offsets off, const float* h, 
   const avalanching::Donor d = avalanching::donor(h[i], hn, t, avail, kc);
   frac[i] = d.f;
   out[i] = d.out;
-  if (d.out > 0) *moved = 1;  // every writer stores the same value
+  // Every writer stores the same value.
+  if (d.out > 0) *moved = 1;
+  if (d.f > 0.0f) *donors = 1;
 }
 
 // Pass 2: units each cell receives from its 8 neighbours, then the new layer
 // and its heights in the other height buffer.
 template <bool kBedrock>
-__global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h,
-                              const float* tan_l, float tan_l_const, const float* frac,
-                              const units_t* out, bool to_sand, units_t* target, units_t* sand,
-                              const units_t* bedrock, float* h_next) {
+__global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h, const float* tan_l,
+                              float tan_l_const, const float* frac, const units_t* out,
+                              bool to_sand, units_t* target, units_t* sand, const units_t* bedrock,
+                              float* h_next) {
   int x, y;
   if (!grown_cell(g, grow, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
@@ -88,26 +93,49 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
   if (iterations <= 0) return 0;
   const Offsets off = neighbour_offsets(g_.pitch);
   DeviceBuffer<units_t>& target = bedrock ? bedrock_ : sand_;
-  const int e = 2 * iterations;
+  const int round = m_.avalanche_round_for(iterations);
+  const int e = 2 * round;
+  const bool alone = ex_.tiles() == 1;
 
   const Launch l0 = grown_cells(g_, e);
   ERG_LAUNCH(level0_kernel, l0.grid, l0.block, g_, e, bedrock, bedrock_.get(), sand_.get(),
              h_a_.get());
+  // moved_[it - 1]: iteration it sent sand; moved_[iterations + it - 1]: it
+  // had a donor (f > 0).
   ERG_CUDA_CHECK(
-      cudaMemsetAsync(moved_.get(), 0, sizeof(int) * static_cast<std::size_t>(iterations)));
+      cudaMemsetAsync(moved_.get(), 0, sizeof(int) * 2 * static_cast<std::size_t>(iterations)));
 
   const float kc_full = m_.kc;
+  int ran = iterations;
   for (int it = 1; it <= iterations; ++it) {
+    const int j = (it - 1) % round + 1;  // iteration within the round
+    if (j == 1 && it > 1) {
+      if (!alone) {
+        int donors = 0;
+        ERG_CUDA_CHECK(cudaMemcpy(&donors, moved_.get() + iterations + (it - 2), sizeof(int),
+                                  cudaMemcpyDeviceToHost));
+        if (!ex_.any(donors != 0)) {
+          ran = it - 1;
+          break;
+        }
+      }
+      // A new round: refill the ghosts of the layer that moved and recompute
+      // the heights of the grown tile.
+      fill(target, e + 1);
+      ERG_LAUNCH(level0_kernel, l0.grid, l0.block, g_, e, bedrock, bedrock_.get(), sand_.get(),
+                 h_a_.get());
+    }
     const float kc = avalanching::kc_for(it, iterations, kc_full, m_.kc_damped);
-    const int grow1 = 2 * (iterations - it) + 1, grow2 = grow1 - 1;  // pass 1, pass 2
+    const int grow1 = 2 * (round - j) + 1, grow2 = grow1 - 1;  // pass 1, pass 2
     const Launch l1 = grown_cells(g_, grow1), l2 = grown_cells(g_, grow2);
     int* moved = moved_.get() + (it - 1);
+    int* donors = moved_.get() + iterations + (it - 1);
     if (bedrock)
       ERG_LAUNCH(donor_kernel<true>, l1.grid, l1.block, g_, grow1, off, h_a_.get(), nullptr,
-                 m_.tan_l_bedrock, nullptr, kc, frac_.get(), out_.get(), moved);
+                 m_.tan_l_bedrock, nullptr, kc, frac_.get(), out_.get(), moved, donors);
     else
       ERG_LAUNCH(donor_kernel<false>, l1.grid, l1.block, g_, grow1, off, h_a_.get(), tan_l_.get(),
-                 0.0f, sand_.get(), kc, frac_.get(), out_.get(), moved);
+                 0.0f, sand_.get(), kc, frac_.get(), out_.get(), moved, donors);
 
     if (bedrock)
       ERG_LAUNCH(inflow_kernel<true>, l2.grid, l2.block, g_, grow2, off, h_a_.get(), nullptr,
@@ -120,7 +148,7 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
     h_a_.swap(h_b_);
   }
 
-  std::vector<int> flags(static_cast<std::size_t>(iterations));
+  std::vector<int> flags(static_cast<std::size_t>(ran));
   ERG_CUDA_CHECK(
       cudaMemcpy(flags.data(), moved_.get(), sizeof(int) * flags.size(), cudaMemcpyDeviceToHost));
   int moved_iterations = 0;

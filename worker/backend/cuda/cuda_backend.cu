@@ -271,7 +271,7 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
   out_.reset(n);
   coarse_mine_.reset(static_cast<std::size_t>(g_.nx / m_.coarse.cx) * (g_.ny / m_.coarse.cy));
   moved_.reset(
-      static_cast<std::size_t>(std::max({m_.avalanche_iterations, m_.bedrock_iterations, 1})));
+      2 * static_cast<std::size_t>(std::max({m_.avalanche_iterations, m_.bedrock_iterations, 1})));
 
   // Coarse grid of the wind warping: buffers, plans (made once, here) and the
   // Gaussian transfer per spectral coefficient, evaluated on the host by the
@@ -416,8 +416,10 @@ void CudaBackend::fill(DeviceBuffer<T>& f, int w) {
     return;
   }
   Field<T>& host = [this]() -> Field<T>& {
-    if constexpr (std::is_same_v<T, units_t>) return stage_units_;
-    else return stage_float_;
+    if constexpr (std::is_same_v<T, units_t>)
+      return stage_units_;
+    else
+      return stage_float_;
   }();
   if (host.size() != f.size()) host.reset(g_);
   ERG_CUDA_CHECK(cudaMemcpy(host.data(), f.get(), f.bytes(), cudaMemcpyDeviceToHost));

@@ -211,7 +211,7 @@ class CudaBackend final : public Backend {
   void synchronize() override;
 
  private:
-  void update_repose();                         // tan_l from vegetation
+  void update_repose();  // tan_l from vegetation
   // Ghosts of a device field: on the device when this tile is the whole
   // torus, else staged through host memory and the exchange.
   template <class T>
@@ -243,7 +243,7 @@ class CudaBackend final : public Backend {
   DeviceBuffer<float> h_a_, h_b_, frac_;
   DeviceBuffer<units_t> out_;
   DeviceBuffer<double> coarse_mine_;  // this tile's coarse cells
-  DeviceBuffer<int> moved_;  // one flag per avalanching iteration
+  DeviceBuffer<int> moved_;           // two flags per avalanching iteration (avalanching.cu)
   // wind warping on the coarse grid
   DeviceBuffer<double> coarse_h_;              // [ny][nx] real input/output of the FFTs
   DeviceBuffer<cufftDoubleComplex> spectrum_;  // [ny][nx/2+1]
