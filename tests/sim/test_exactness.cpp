@@ -159,10 +159,11 @@ TEST(Exactness, SparseAvalanchingEqualsVisitingEveryCell) {
 }
 
 // Ghost-zone rounds (backend/cpu/avalanching.cpp) are execution only: a
-// refill before every iteration (one tile), rounds of 3 and of 4 (several
-// tiles: kTiledAvalancheRound), and all iterations in one round give the
-// same fields, bit for bit. A 60 m sand column needs many more iterations
-// than one round to spread, so every round length refills several times.
+// refill before every iteration (one tile), rounds of 3, a first round of 4
+// then the rest in one (several tiles), a first round of 3 then the rest,
+// and all iterations in one round give the same fields, bit for bit. A 60 m
+// sand column needs many more iterations than one round to spread, so every
+// grouping refills, and the rest-in-one rounds widen.
 TEST(Exactness, AvalanchingRoundsDoNotChangeResults) {
   const std::string column = R"({
     "domain": {"nx": 96, "ny": 80, "cell_size_m": 1.0},
@@ -174,19 +175,22 @@ TEST(Exactness, AvalanchingRoundsDoNotChangeResults) {
     "model": {"avalanche_iterations": 25, "bedrock_avalanche_iterations": 6, "abrasion_k": 0.05,
               "bedrock_to_sand": true},
     "run": {"steps": 20}})";
-  auto run = [&](int round) {
+  auto run = [&](AvalancheRounds rounds) {
     Placement place;
-    place.avalanche_round = round;
+    place.rounds = rounds;
     Simulation sim(spec_from(column), ".", cpu_threads(2), place);
     for (int s = 0; s < 20; ++s) sim.step();
     return std::make_pair(sim.state(), sim.times().avalanche_iterations);
   };
-  const auto [per_iteration, moved] = run(1);
-  EXPECT_GT(moved, 20 * kTiledAvalancheRound) << "avalanching too short to need several rounds";
-  for (const int round : {3, kTiledAvalancheRound, 0}) {
-    const auto [state, moved_too] = run(round);
-    expect_bitwise_equal(per_iteration, state, "rounds of " + std::to_string(round));
-    EXPECT_EQ(moved, moved_too) << "rounds of " << round;
+  const auto [per_iteration, moved] = run(kOneTileRounds);
+  EXPECT_GT(moved, 20 * kTiledRounds.length) << "avalanching too short to need several rounds";
+  for (const AvalancheRounds rounds : {AvalancheRounds{3, false}, kTiledRounds,
+                                       AvalancheRounds{3, true}, AvalancheRounds{0, false}}) {
+    const std::string what =
+        "rounds of " + std::to_string(rounds.length) + (rounds.rest_in_one ? " then the rest" : "");
+    const auto [state, moved_too] = run(rounds);
+    expect_bitwise_equal(per_iteration, state, what);
+    EXPECT_EQ(moved, moved_too) << what;
   }
 }
 

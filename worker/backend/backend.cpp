@@ -27,15 +27,16 @@ std::unique_ptr<Backend> make_backend(BackendKind kind, const Model& model, int 
     if (cuda_device_available()) return make_cuda_backend(model, ex, local_rank);
     if (kind == BackendKind::kCuda)
       throw std::invalid_argument("--backend cuda: no CUDA device is visible to this process");
+    // Once per process, and from one rank per node.
     static bool told = false;
-    if (!told) std::cerr << "erg: no CUDA device found, using the CPU backend\n";
+    if (!told && local_rank == 0) std::cerr << "erg: no CUDA device found, using the CPU backend\n";
     told = true;
 #else
     if (kind == BackendKind::kCuda)
       throw std::invalid_argument(
           "--backend cuda: this build has no CUDA backend (nvcc was not found)");
     static bool told = false;
-    if (!told) std::cerr << "erg: built without CUDA, using the CPU backend\n";
+    if (!told && local_rank == 0) std::cerr << "erg: built without CUDA, using the CPU backend\n";
     told = true;
 #endif
   }

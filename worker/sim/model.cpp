@@ -13,7 +13,7 @@ constexpr double kDeg = 3.14159265358979323846 / 180.0;
 }
 
 Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
-                 int avalanche_round) {
+                 AvalancheRounds rounds) {
   const auto& m = spec.model();
   const double l = spec.domain().cell_size_m();
   Model md;
@@ -69,7 +69,7 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
   md.bedrock_iterations = static_cast<int>(m.bedrock_avalanche_iterations());
   md.bedrock_to_sand = m.bedrock_to_sand();
   md.time_step_days = m.time_step_days();
-  md.avalanche_round = avalanche_round;
+  md.rounds = rounds;
 
   TileGeom& t = md.tile;
   t.nx = nx;

@@ -23,14 +23,41 @@ struct CoarseGrid {
   double sigma_m[2] = {0, 0};  // Gaussian sigma of the large and small scales
 };
 
-// Avalanching iterations per round when tiles exchange over MPI. After the
-// first steps relax the initial sand, avalanching moves sand in one or two
-// iterations per step and the next finds nothing to move, so a round of 4
-// usually ends the step's avalanching with one logical or and no refill. Its
-// halo, 2 * 4 + 1 = 9 cells, is what the tiles exchange before reptation
-// (with all of N = 50 iterations in one round it would be 101). Execution
-// only: results are identical for any round length.
-constexpr int kTiledAvalancheRound = 4;
+// How a step's avalanching iterations are grouped into rounds. A round of R
+// iterations starts from layers whose ghosts are filled 2R + 1 cells wide
+// and needs no exchange inside (ghost-zone expansion, DESIGN.md section 4);
+// a new round refills the ghosts. Execution only: every grouping gives the
+// same results, bit for bit (tests/sim/test_exactness.cpp).
+struct AvalancheRounds {
+  int length = 1;            // iterations per round; 0: all of them in one
+  bool rest_in_one = false;  // after the first round, all the others in one
+
+  struct Round {
+    int first = 1, length = 1;  // iterations [first, first + length)
+  };
+  // The round holding iteration `it` (1-based) of `n`.
+  Round of(int it, int n) const {
+    const int r = length <= 0 ? n : std::min(length, n);
+    if (it <= r) return {1, r};
+    if (rest_in_one) return {r + 1, n - r};
+    const int first = (it - 1) / r * r + 1;
+    return {first, std::min(r, n - first + 1)};
+  }
+  int first_length(int n) const { return of(1, n).length; }
+  int widest(int n) const { return n <= 0 ? 0 : std::max(first_length(n), of(n, n).length); }
+};
+
+// One tile refills its ghosts, a local copy, before every iteration: a wide
+// halo would only add work.
+constexpr AvalancheRounds kOneTileRounds{1, false};
+// Several tiles: a first round of 4, then the rest in one. After the first
+// steps relax the initial sand, avalanching moves sand in one or two
+// iterations per step and the next finds nothing to move, so most steps end
+// after the first round with one logical or: the tiles exchange a 9-cell
+// halo before reptation instead of 2N + 1 (101 for N = 50). When sand keeps
+// moving, the second round refills a halo of 2 (N - 4) + 1 once: at most two
+// exchanges of the avalanching layers per step, whatever N.
+constexpr AvalancheRounds kTiledRounds{4, true};
 
 struct Model {
   TileGeom tile;  // the tile this process owns, with its halo
@@ -58,26 +85,22 @@ struct Model {
   int halo_saltation() const {  // hop reach + bilinear footprint
     return static_cast<int>(std::ceil(saltation.max_hop_m / tile.cell_m)) + 2;
   }
-  // Avalanching iterations between two refills of the avalanching layer's
-  // ghosts: 1 on one tile (a refill is a local copy, a wide halo only adds
-  // work); kTiledAvalancheRound with several; 0 means all of a step's
-  // iterations in one round (one exchange whatever their number, but a halo
-  // of 2N + 1 cells, computed redundantly by both neighbours).
-  int avalanche_round = 0;
-  int avalanche_round_for(int iterations) const {
-    return avalanche_round <= 0 ? iterations : std::min(avalanche_round, iterations);
-  }
+  AvalancheRounds rounds;
   // Ghost-zone expansion: a round of R iterations runs inside a halo of 2R
   // cells (two cells per iteration); reptation, just before, needs one more.
+  // The first round's ghosts come with the exchange before reptation; the
+  // halo is allocated for the widest round.
+  int halo_avalanche_first() const {
+    return 2 * rounds.first_length(std::max(avalanche_iterations, bedrock_iterations));
+  }
   int halo_avalanche() const {
-    return 2 * avalanche_round_for(std::max(avalanche_iterations, bedrock_iterations));
+    return 2 * std::max(rounds.widest(avalanche_iterations), rounds.widest(bedrock_iterations));
   }
 };
 
 // Resolves a defaults-filled, validated spec for a tile of `nx x ny` owned
 // cells at global offset (x0, y0); the halo is chosen to cover every stage.
-// avalanche_round: see Model.
 Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
-                 int avalanche_round = 1);
+                 AvalancheRounds rounds = kOneTileRounds);
 
 }  // namespace erg

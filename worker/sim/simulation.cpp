@@ -60,9 +60,9 @@ void Simulation::place_tile(const Placement& place) {
     exchange_ = own_exchange_.get();
   }
   local_rank_ = place.local_rank;
-  const int round = place.avalanche_round >= 0 ? place.avalanche_round
-                    : exchange_->tiles() > 1   ? kTiledAvalancheRound
-                                               : 1;
+  const AvalancheRounds round = place.rounds             ? *place.rounds
+                                : exchange_->tiles() > 1 ? kTiledRounds
+                                                         : kOneTileRounds;
   if (place.nx > 0)
     model_ = make_model(spec_, place.nx, place.ny, place.x0, place.y0, round);
   else

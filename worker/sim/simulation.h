@@ -4,6 +4,7 @@
 
 #include <array>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,7 +22,9 @@ struct Placement {
   int x0 = 0, y0 = 0, nx = 0, ny = 0;  // owned cells; nx = 0: the whole domain
   dist::Exchange* exchange = nullptr;  // null: the periodic wrap of one tile
   int local_rank = 0;                  // picks the GPU
-  int avalanche_round = -1;            // see Model; -1: 1 on one tile, else kTiledAvalancheRound
+  // Avalanching rounds (sim/model.h); none: kOneTileRounds on one tile,
+  // else kTiledRounds.
+  std::optional<AvalancheRounds> rounds;
 };
 
 struct RunOptions {

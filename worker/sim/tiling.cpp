@@ -10,7 +10,7 @@ std::unique_ptr<Tiling> make_tiling(const erg::v1::JobSpec& spec, MPI_Comm world
   MPI_Comm_rank(world, &t->rank);
   MPI_Comm_size(world, &t->size);
   const int gnx = static_cast<int>(spec.domain().nx()), gny = static_cast<int>(spec.domain().ny());
-  const int round = t->tiled() ? kTiledAvalancheRound : 1;
+  const AvalancheRounds round = t->tiled() ? kTiledRounds : kOneTileRounds;
   const Model whole = make_model(spec, gnx, gny, 0, 0, round);
   // Neighbours' ghosts come from one tile: tiles at least as wide as the
   // halo; each coarse wind cell lies in one tile.
@@ -28,7 +28,7 @@ std::unique_ptr<Tiling> make_tiling(const erg::v1::JobSpec& spec, MPI_Comm world
   t->place.y0 = t->slab.y0;
   t->place.nx = t->slab.nx;
   t->place.ny = t->slab.ny;
-  t->place.avalanche_round = round;
+  t->place.rounds = round;
   if (t->tiled()) {
     const Model tile = make_model(spec, t->slab.nx, t->slab.ny, t->slab.x0, t->slab.y0, round);
     t->exchange = std::make_unique<dist::MpiExchange>(t->cart, t->d, tile.tile, whole.coarse.cx,

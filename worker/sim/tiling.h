@@ -28,7 +28,7 @@ struct Tiling {
 // Collective over `world`. One rank: one tile that is the whole torus
 // (periodic exchange, per-iteration avalanching rounds). Several: tiles at
 // least as wide as the halo, aligned to the coarse wind cells, exchanging
-// over MPI, avalanching in rounds of kTiledAvalancheRound iterations. Throws
+// over MPI, avalanching in kTiledRounds (sim/model.h). Throws
 // std::invalid_argument (on every rank alike) for a grid that cannot work.
 std::unique_ptr<Tiling> make_tiling(const erg::v1::JobSpec& spec, MPI_Comm world, int tiles_x = 0,
                                     int tiles_y = 0);

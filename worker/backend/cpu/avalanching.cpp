@@ -138,10 +138,10 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
   const int nx = g_.nx, ny = g_.ny;
   // Iteration j of a round of R runs pass 2 on the tile grown by 2 (R - j)
   // cells and pass 1 on one more; a round starts at e = 2R, within the ghosts
-  // the exchange before reptation (or the refill of the round) filled.
-  const int round = m_.avalanche_round_for(iterations);
-  const int e = 2 * round;
-  const int rows = ny + 2 * e, cols = nx + 2 * e;
+  // the exchange before reptation (or the refill of the round) filled. The
+  // segment masks cover the widest round, E = 2 max(R).
+  const int widest = 2 * m_.rounds.widest(iterations);
+  const int rows = ny + 2 * widest, cols = nx + 2 * widest;
   const int segs = (cols + kSegment - 1) / kSegment;
   const size_t nseg = static_cast<size_t>(rows) * segs;
   Field<units_t>& target = bedrock ? bedrock_ : sand_;
@@ -157,9 +157,11 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
       for (int x = x0; x < x1; ++x) h[x] = units_to_m(bedrock ? b[x] : b[x] + s[x]);
     }
   };
+  AvalancheRounds::Round round = m_.rounds.of(1, iterations);
+  int e = 2 * round.length;
   heights(-e, ny + e, -e, nx + e);
 
-  // Segment (r, s) covers row r - e, columns [s * 64 - e, (s + 1) * 64 - e).
+  // Segment (r, s) covers row r - E, columns [s * 64 - E, (s + 1) * 64 - E).
   std::vector<std::uint8_t> visit(nseg, 1), positive(nseg, 0), exchange(nseg, 0), changed(nseg, 0);
   int moved_iterations = 0;
   // With several tiles a tile that finds nothing left to move still takes
@@ -170,40 +172,51 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
   bool no_donors = false;     // ... nor in any later step on this terrain
   for (int it = 1; it <= iterations; ++it) {
     const float kc = avalanching::kc_for(it, iterations, m_.kc, m_.kc_damped);
-    const int j = (it - 1) % round + 1;  // iteration within the round
-    if (j == 1 && it > 1) {
+    if (it > 1 && it == round.first + round.length) {
       if (!alone) {
         if (!ex_.any(!stopped_here)) break;
         stopped_here = false;
       }
       // A new round: refill the ghosts of the layer that moved, recompute
       // their heights, and revisit every cell that reads them.
+      round = m_.rounds.of(it, iterations);
+      const int e_last = e;
+      e = 2 * round.length;
       ex_.fill(target, e + 1);
-      heights(-e, 0, -e, nx + e);
-      heights(ny, ny + e, -e, nx + e);
-      heights(0, ny, -e, 0);
-      heights(0, ny, nx, nx + e);
-      for (int r = 0; r < rows; ++r)
-        for (int s = 0; s < segs; ++s) {
-          const int y = r - e, x0 = s * kSegment - e, x1 = x0 + kSegment;
-          const bool near_edge = y < e + 2 || y >= ny - e - 2 || x0 < e + 2 || x1 > nx - e - 2;
-          if (near_edge) visit[static_cast<size_t>(r) * segs + s] = 1;
-        }
+      if (e <= e_last) {
+        heights(-e, 0, -e, nx + e);
+        heights(ny, ny + e, -e, nx + e);
+        heights(0, ny, -e, 0);
+        heights(0, ny, nx, nx + e);
+        for (int r = 0; r < rows; ++r)
+          for (int s = 0; s < segs; ++s) {
+            const int y = r - widest, x0 = s * kSegment - widest, x1 = x0 + kSegment;
+            const bool near_edge = y < e + 2 || y >= ny - e - 2 || x0 < e + 2 || x1 > nx - e - 2;
+            if (near_edge) visit[static_cast<size_t>(r) * segs + s] = 1;
+          }
+      } else {
+        // A wider round (the rest of the iterations in one, several tiles):
+        // the other layer's ghosts too, and every cell.
+        if (!bedrock) ex_.fill(bedrock_, e + 1);
+        heights(-e, ny + e, -e, nx + e);
+        std::fill(visit.begin(), visit.end(), 1);
+      }
     }
-    if (stopped_here) continue;                                // until the round ends
-    const int grow1 = 2 * (round - j) + 1, grow2 = grow1 - 1;  // pass 1, pass 2
+    if (stopped_here) continue;                                       // until the round ends
+    const int j = it - round.first + 1;                               // iteration within the round
+    const int grow1 = 2 * (round.length - j) + 1, grow2 = grow1 - 1;  // pass 1, pass 2
 
     // Pass 1: fractions where heights may have changed, or donors remain.
     bool any_positive = false;
 #pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_positive)
     for (int r = 0; r < rows; ++r) {
-      const int y = r - e;
+      const int y = r - widest;
       for (int s = 0; s < segs; ++s) {
         const size_t k = static_cast<size_t>(r) * segs + s;
         positive[k] = 0;
         if (!visit[k] || y < -grow1 || y >= ny + grow1) continue;
-        const int x0 = std::max(s * kSegment - e, -grow1);
-        const int x1 = std::min((s + 1) * kSegment - e, nx + grow1);
+        const int x0 = std::max(s * kSegment - widest, -grow1);
+        const int x1 = std::min((s + 1) * kSegment - widest, nx + grow1);
         if (x0 >= x1) continue;
         positive[k] = bedrock ? fraction_segment<true>(h_a_.row(y), nullptr, tan_b, nullptr, kc, st,
                                                        x0, x1, frac_.row(y))
@@ -228,14 +241,14 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
     bool any_change = false;
 #pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_change)
     for (int r = 0; r < rows; ++r) {
-      const int y = r - e;
+      const int y = r - widest;
       units_t gain[kSegment], loss[kSegment];
       for (int s = 0; s < segs; ++s) {
         const size_t k = static_cast<size_t>(r) * segs + s;
         changed[k] = 0;
         if (!exchange[k] || y < -grow2 || y >= ny + grow2) continue;
-        const int x0 = std::max(s * kSegment - e, -grow2);
-        const int x1 = std::min((s + 1) * kSegment - e, nx + grow2);
+        const int x0 = std::max(s * kSegment - widest, -grow2);
+        const int x1 = std::min((s + 1) * kSegment - widest, nx + grow2);
         if (x0 >= x1) continue;
         const bool active = bedrock ? exchange_segment<true>(h_a_.row(y), nullptr, tan_b,
                                                              frac_.row(y), st, x0, x1, gain, loss)
@@ -279,11 +292,11 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
     // New heights where layers changed (after pass 2: it read the old ones).
 #pragma omp parallel for num_threads(threads_) schedule(dynamic, 4)
     for (int r = 0; r < rows; ++r) {
-      const int y = r - e;
+      const int y = r - widest;
       for (int s = 0; s < segs; ++s) {
         if (!changed[static_cast<size_t>(r) * segs + s]) continue;
-        const int x0 = std::max(s * kSegment - e, -grow2);
-        const int x1 = std::min((s + 1) * kSegment - e, nx + grow2);
+        const int x0 = std::max(s * kSegment - widest, -grow2);
+        const int x1 = std::min((s + 1) * kSegment - widest, nx + grow2);
         const units_t* b = bedrock_.row(y);
         const units_t* sd = sand_.row(y);
         float* h = h_a_.row(y);

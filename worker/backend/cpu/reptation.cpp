@@ -35,7 +35,7 @@ void CpuBackend::reptation() {
   // impact strengths with the avalanching halo plus one. Reptation then runs
   // on the tile grown by the avalanching halo (its ghosts computed exactly as
   // their owners compute them), and avalanching needs no exchange.
-  const int w = m_.halo_avalanche() + 1;
+  const int w = m_.halo_avalanche_first() + 1;
   ex_.fill(sand_, w);
   ex_.fill(bedrock_, w);
   if (m_.reptation_k <= 0.0f) return;

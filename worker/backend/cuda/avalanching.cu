@@ -3,9 +3,9 @@
 // double-buffered heights. Pass 1 (avalanching::donor) gives each donor its
 // fraction and the total it sends; pass 2 (avalanching::inflow) has each
 // receiver recompute what its neighbours send it. As on the CPU, iterations
-// run in rounds of R (Model::avalanche_round_for): the j-th iteration of a
-// round runs on the tile grown by 2 (R - j) cells, and a new round refills
-// the ghosts of the layer that moves.
+// run in rounds (Model::rounds): the j-th iteration of a round of R runs on
+// the tile grown by 2 (R - j) cells, and a new round refills the ghosts of
+// the layer that moves.
 //
 // The CPU stops early once nothing moved and nothing can move later. One
 // tile here runs all iterations (no read-back per iteration): once nothing
@@ -25,10 +25,13 @@ namespace erg::gpu {
 namespace {
 
 // Level-0 heights in metres: b + s for sand, b for bedrock.
-__global__ void level0_kernel(TileGeom g, int grow, bool bedrock_only, const units_t* bedrock,
-                              const units_t* sand, float* h) {
+// ghosts_only: the owned cells' heights are current (a new round of the
+// same width), only the refilled ghosts change.
+__global__ void level0_kernel(TileGeom g, int grow, bool ghosts_only, bool bedrock_only,
+                              const units_t* bedrock, const units_t* sand, float* h) {
   int x, y;
   if (!grown_cell(g, grow, x, y)) return;
+  if (ghosts_only && x >= 0 && x < g.nx && y >= 0 && y < g.ny) return;
   const std::size_t i = g.at(x, y);
   h[i] = units_to_m(bedrock_only ? bedrock[i] : bedrock[i] + sand[i]);
 }
@@ -93,13 +96,12 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
   if (iterations <= 0) return 0;
   const Offsets off = neighbour_offsets(g_.pitch);
   DeviceBuffer<units_t>& target = bedrock ? bedrock_ : sand_;
-  const int round = m_.avalanche_round_for(iterations);
-  const int e = 2 * round;
+  AvalancheRounds::Round round = m_.rounds.of(1, iterations);
+  int e = 2 * round.length;
   const bool alone = ex_.tiles() == 1;
 
-  const Launch l0 = grown_cells(g_, e);
-  ERG_LAUNCH(level0_kernel, l0.grid, l0.block, g_, e, bedrock, bedrock_.get(), sand_.get(),
-             h_a_.get());
+  ERG_LAUNCH(level0_kernel, grown_cells(g_, e).grid, grown_cells(g_, e).block, g_, e, false,
+             bedrock, bedrock_.get(), sand_.get(), h_a_.get());
   // moved_[it - 1]: iteration it sent sand; moved_[iterations + it - 1]: it
   // had a donor (f > 0).
   ERG_CUDA_CHECK(
@@ -108,8 +110,7 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
   const float kc_full = m_.kc;
   int ran = iterations;
   for (int it = 1; it <= iterations; ++it) {
-    const int j = (it - 1) % round + 1;  // iteration within the round
-    if (j == 1 && it > 1) {
+    if (it > 1 && it == round.first + round.length) {
       if (!alone) {
         int donors = 0;
         ERG_CUDA_CHECK(cudaMemcpy(&donors, moved_.get() + iterations + (it - 2), sizeof(int),
@@ -119,14 +120,20 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
           break;
         }
       }
-      // A new round: refill the ghosts of the layer that moved and recompute
-      // the heights of the grown tile.
+      // A new round: refill the ghosts of the layer that moved (and of
+      // bedrock under sand when the round is wider than the first) and
+      // recompute the heights of the grown tile.
+      round = m_.rounds.of(it, iterations);
+      const int e_last = e;
+      e = 2 * round.length;
       fill(target, e + 1);
-      ERG_LAUNCH(level0_kernel, l0.grid, l0.block, g_, e, bedrock, bedrock_.get(), sand_.get(),
-                 h_a_.get());
+      if (e > e_last && !bedrock) fill(bedrock_, e + 1);
+      ERG_LAUNCH(level0_kernel, grown_cells(g_, e).grid, grown_cells(g_, e).block, g_, e,
+                 e <= e_last, bedrock, bedrock_.get(), sand_.get(), h_a_.get());
     }
+    const int j = it - round.first + 1;  // iteration within the round
     const float kc = avalanching::kc_for(it, iterations, kc_full, m_.kc_damped);
-    const int grow1 = 2 * (round - j) + 1, grow2 = grow1 - 1;  // pass 1, pass 2
+    const int grow1 = 2 * (round.length - j) + 1, grow2 = grow1 - 1;  // pass 1, pass 2
     const Launch l1 = grown_cells(g_, grow1), l2 = grown_cells(g_, grow2);
     int* moved = moved_.get() + (it - 1);
     int* donors = moved_.get() + iterations + (it - 1);

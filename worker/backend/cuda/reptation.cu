@@ -9,8 +9,8 @@ namespace erg::gpu {
 namespace {
 
 __global__ void reptation_kernel(TileGeom g, int grow, Offsets off, float k_r,
-                                 const units_t* bedrock, const units_t* sand,
-                                 const float* strength, units_t* next) {
+                                 const units_t* bedrock, const units_t* sand, const float* strength,
+                                 units_t* next) {
   int x, y;
   if (!grown_cell(g, grow, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
@@ -33,7 +33,7 @@ void CudaBackend::reptation() {
   // One exchange for reptation and avalanching together (as on the CPU):
   // the layers and impact strengths with the avalanching halo plus one;
   // reptation runs on the tile grown by the avalanching halo.
-  const int w = m_.halo_avalanche() + 1;
+  const int w = m_.halo_avalanche_first() + 1;
   fill(sand_, w);
   fill(bedrock_, w);
   if (m_.reptation_k <= 0.0f) return;
