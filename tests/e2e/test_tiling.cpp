@@ -250,6 +250,34 @@ TEST(Tiling, SettledTilesWaitForASpreadingColumn) {
   EXPECT_EQ(cells[1][1], 0) << "no tile stayed settled: the test no longer covers waiting tiles";
 }
 
+// Issue 3: the exchange rounds per step must not grow with the number of
+// avalanching iterations. The column keeps sand moving through every
+// iteration of the first steps, so N = 12 and N = 48 both use the second,
+// wider round; refills every 4 iterations would send several times the
+// messages at N = 48.
+TEST(Tiling, HaloMessagesDoNotGrowWithAvalancheIterations) {
+  TempDir t("erg_tiling");
+  auto messages = [&](int iterations) {
+    const std::string name = "n" + std::to_string(iterations);
+    write(t / (name + ".json"),
+          R"({"domain": {"nx": 192, "ny": 192, "cell_size_m": 1.0},
+ "layers": {"sand": {"piles": [{"x_m": 96, "y_m": 96, "height": 80, "radius_m": 8, "shape": "CYLINDER"}]}},
+ "wind": {"constant": {"speed_mps": 1, "direction_deg": 0}},
+ "model": {"avalanche_iterations": )" +
+              std::to_string(iterations) + R"(}, "run": {"steps": 10, "snapshot_every": 0}})");
+    const Result r = run(worker_on(
+        2, (t / (name + ".json")) + " --out " + (t / name) + " --progress-fd 1 --threads 1"));
+    EXPECT_EQ(r.code, 0) << r.output;
+    const size_t k = r.output.find("\"halo_messages_per_step\":");
+    EXPECT_NE(k, std::string::npos) << r.output;
+    return k == std::string::npos ? 0.0 : std::stod(r.output.substr(k + 25));
+  };
+  const double few = messages(12), many = messages(48);
+  EXPECT_GT(few, 0);
+  EXPECT_LE(many, few * 1.05) << "messages per step grow with the avalanching iterations: " << few
+                              << " at N = 12, " << many << " at N = 48";
+}
+
 TEST(Tiling, BadTileGridsAreRefusedOnEveryRank) {
   TempDir t("erg_tiling");
   write(t / "job.json", job("EXPECTED"));
