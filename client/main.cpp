@@ -235,6 +235,13 @@ int cmd_run(const std::vector<std::string>& args) {
         if (ev.count("halo_messages_per_step") && num("halo_messages_per_step") > 0)
           std::cerr << "erg: halo exchange: " << ev.at("halo_messages_per_step") << " messages, "
                     << ev.at("halo_bytes_per_step") << " bytes per step (the most of any rank)\n";
+        if (ev.count("peak_rss_bytes_per_cell")) {
+          char line[160];
+          std::snprintf(line, sizeof line,
+                        "erg: memory: %.0f bytes per cell (peak resident, all ranks: %.2f GiB)\n",
+                        num("peak_rss_bytes_per_cell"), num("peak_rss_bytes") / 1073741824.0);
+          std::cerr << line;
+        }
         std::cerr << "erg: done at step " << ev.at("step") << "; exact sand total "
                   << ev.at("sand_units_total") << " units on the ground + "
                   << ev.at("airborne_units_total") << " airborne\n";

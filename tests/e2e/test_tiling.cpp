@@ -303,6 +303,8 @@ TEST(Tiling, ErgRunStartsRanksAndReportsHaloTraffic) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("2 rank(s) as 2x1 tiles"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("halo exchange:"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("bytes per cell (peak resident, all ranks:"), std::string::npos)
+      << r.output;
   expect_same_runs(t / "one", t / "two", {"00000030"}, "erg run --ranks 2");
 }
 

@@ -105,6 +105,14 @@ TEST(Snapshot, RoundTripsEveryDatasetAndAttribute) {
 
   // Only the snapshot is left in the directory: no temporary survives.
   EXPECT_EQ(dir.entries(), std::set<std::string>{"snap.h5"});
+
+  // The terrain alone (previews of tiled runs): the same three layers.
+  const Snapshot t = read_snapshot(path, /*terrain_only=*/true);
+  EXPECT_EQ(t.meta.step, s.meta.step);
+  expect_same_bits(t.bedrock, s.bedrock, "terrain bedrock");
+  expect_same_bits(t.sand, s.sand, "terrain sand");
+  expect_same_bits(t.vegetation, s.vegetation, "terrain vegetation");
+  EXPECT_TRUE(t.wind.empty() && t.airborne.empty() && t.shadow.empty());
 }
 
 TEST(Snapshot, OptionalLayersAbsentReadBackEmpty) {

@@ -57,12 +57,14 @@ void write_snapshot(const std::string& path, const SnapshotMeta& meta, const Sna
 void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const SnapshotMeta& meta,
                 bool has_airborne, bool has_shadow);
 
-// Reads a snapshot back (tests, tools). Missing optional datasets stay empty.
+// Reads a snapshot back (tests, tools). Missing optional datasets stay empty;
+// terrain_only reads bedrock, sand and vegetation alone (what a preview
+// needs: 12 of the 28 bytes per cell).
 struct Snapshot {
   SnapshotMeta meta;
   std::vector<float> bedrock, sand, vegetation, wind, airborne, shadow;
 };
-Snapshot read_snapshot(const std::string& path);
+Snapshot read_snapshot(const std::string& path, bool terrain_only = false);
 
 // ---- checkpoints -----------------------------------------------------------
 // The exact integer state: enough to continue a run bitwise identically.

@@ -204,7 +204,7 @@ void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const 
   out.commit();
 }
 
-Snapshot read_snapshot(const std::string& path) {
+Snapshot read_snapshot(const std::string& path, bool terrain_only) {
   detail::Hdf5Guard guard;
   Hid file = detail::open_hdf5_readonly(path, "snapshot");
   const hid_t fid = file.get();
@@ -233,6 +233,7 @@ Snapshot read_snapshot(const std::string& path) {
   s.bedrock = layer("bedrock", grid);
   s.sand = layer("sand", grid);
   s.vegetation = layer("vegetation", grid);
+  if (terrain_only) return s;
   s.wind = layer("wind", {ny, nx, 2});
   if (detail::link_exists(fid, "airborne")) s.airborne = layer("airborne", grid);
   if (detail::link_exists(fid, "shadow")) s.shadow = layer("shadow", grid);

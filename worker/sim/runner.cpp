@@ -13,6 +13,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <sys/resource.h>
+
 #include "dist/decomposition.h"
 #include "sim/tiling.h"
 
@@ -106,8 +108,9 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
   if (previews) {
     png = dir + "/previews/" + name + ".png";
     if (ctx.tiled()) {
-      // The coordinator has only its tile: the preview is made from the file.
-      const io::Snapshot whole = io::read_snapshot(h5);
+      // The coordinator has only its tile: the preview is made from the file
+      // (12 bytes per cell of the whole domain, on rank 0, for a moment).
+      const io::Snapshot whole = io::read_snapshot(h5, /*terrain_only=*/true);
       io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, whole.bedrock.data(),
                             whole.sand.data(), whole.vegetation.data());
     } else {
@@ -350,12 +353,23 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
     long long mine[2] = {(st.messages - stats0.messages) / ran, (st.bytes - stats0.bytes) / ran};
     long long most[2] = {0, 0};
     MPI_Reduce(mine, most, 2, MPI_LONG_LONG, MPI_MAX, 0, world);
+    // Memory: the peak resident set of every rank (state, work buffers,
+    // halos, output copies, MPI and HDF5), summed and per cell of the domain.
+    struct rusage usage {};
+    ::getrusage(RUSAGE_SELF, &usage);
+    const long long rss = static_cast<long long>(usage.ru_maxrss) * 1024;  // kB on Linux
+    long long rss_sum = 0, rss_max = 0;
+    MPI_Reduce(&rss, &rss_sum, 1, MPI_LONG_LONG, MPI_SUM, 0, world);
+    MPI_Reduce(&rss, &rss_max, 1, MPI_LONG_LONG, MPI_MAX, 0, world);
+    const double cells = static_cast<double>(ctx.d.gnx) * static_cast<double>(ctx.d.gny);
     const std::string totals = totals_json();
     if (ctx.root()) {
       const StageTimes& t = sim->times();
       std::ostringstream o;
       o << "{\"event\":\"done\",\"step\":" << sim->step_index() << "," << totals
         << ",\"halo_messages_per_step\":" << most[0] << ",\"halo_bytes_per_step\":" << most[1]
+        << ",\"peak_rss_bytes\":" << rss_sum << ",\"peak_rss_bytes_max_rank\":" << rss_max
+        << ",\"peak_rss_bytes_per_cell\":" << static_cast<double>(rss_sum) / cells
         << ",\"stage_ms\":{";
       for (int k = 0; k < kStageCount; ++k)
         o << (k ? "," : "") << "\"" << kStageNames[k] << "\":" << t.ms[static_cast<size_t>(k)];
