@@ -1,5 +1,6 @@
 #include "sim/runner.h"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -12,8 +13,6 @@
 #include <iostream>
 #include <sstream>
 #include <stdexcept>
-
-#include <sys/resource.h>
 
 #include "dist/decomposition.h"
 #include "sim/tiling.h"
