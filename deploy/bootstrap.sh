@@ -17,12 +17,16 @@ packages=(
   libprotobuf-dev protobuf-compiler libgrpc++-dev protobuf-compiler-grpc
   # previews and map files
   libpng-dev zlib1g-dev
-  # job store
-  libsqlite3-dev
+  # ergd: job store, HTTP dashboard and metrics, TLS, sha256
+  libsqlite3-dev libcpp-httplib-dev prometheus-cpp-dev libssl-dev
+  # the libFuzzer target of the spec parser (clang's fuzzer runtime)
+  clang libclang-rt-14-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # test helpers that read our outputs with tools erg did not write
   python3 python3-h5py python3-numpy
+  # the Python gRPC client of the service tests, and the dashboard test
+  python3-grpcio python3-protobuf chromium
 )
 
 missing=()

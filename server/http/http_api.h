@@ -1,0 +1,47 @@
+// ergd's HTTP side (cpp-httplib): for dashboards and monitoring.
+//   GET /                      the tenant's jobs: progress bars and the latest
+//                              preview, refreshing itself every 5 s
+//   GET /api/jobs              the tenant's jobs as JSON (protobuf JSON of
+//                              erg.v1.Job, without the spec)
+//   GET /api/jobs/ID           one job with its spec
+//   GET /api/jobs/ID/preview.png   the latest preview
+//   GET /metrics               Prometheus text format
+//   GET /login?token=T         sets a session cookie holding T (HttpOnly,
+//                              SameSite=Strict) and redirects to /: browsers
+//                              cannot send a bearer header on a page load
+// Every route but /login needs `Authorization: Bearer T` or that cookie.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "auth/tokens.h"
+#include "metrics/metrics.h"
+#include "scheduler/job_manager.h"
+
+namespace httplib {
+class Server;
+}
+
+namespace erg::server {
+
+class HttpApi {
+ public:
+  HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const std::string& tls_cert,
+          const std::string& tls_key);
+  ~HttpApi();
+  // Binds host:port (throws when it cannot) and serves on a thread.
+  void start(const std::string& host, int port);
+  void stop();
+
+ private:
+  JobManager& mgr_;
+  Tokens& tokens_;
+  Metrics& metrics_;
+  std::unique_ptr<httplib::Server> server_;
+  std::thread thread_;
+  bool tls_ = false;
+};
+
+}  // namespace erg::server

@@ -1,0 +1,204 @@
+// ergd: the erg job service (proto/erg/v1/service.proto).
+//   ergd --listen ADDR --http ADDR --data DIR --tokens FILE
+//        [--max-running N] [--max-ranks P] [--tls-cert F --tls-key F]
+//        [--cancel-grace S] [--max-job-disk BYTES] [--tenant-cell-steps N]
+//        [--worker PATH] [--mpirun PATH]
+// SIGTERM/SIGINT: stop accepting calls, ask running workers to checkpoint,
+// wait for them, exit; the jobs stay RUNNING in the store and the next ergd
+// resumes them. SIGKILL loses nothing either (server/scheduler/job_manager.h).
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include "api/job_service.h"
+#include "auth/tokens.h"
+#include "http/http_api.h"
+#include "launch/local_launcher.h"
+#include "metrics/metrics.h"
+#include "scheduler/job_manager.h"
+#include "store/job_store.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+void usage() {
+  std::cerr << "usage: ergd --listen HOST:PORT --http HOST:PORT --data DIR --tokens FILE\n"
+               "            [--max-running N (2)] [--max-ranks P (cores)]\n"
+               "            [--tls-cert FILE --tls-key FILE] [--cancel-grace SECONDS (30)]\n"
+               "            [--max-job-disk BYTES (0: none)] [--tenant-cell-steps N (0: none)]\n"
+               "            [--worker PATH (erg-worker next to ergd)] [--mpirun PATH (mpirun)]\n";
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw std::runtime_error("cannot read " + path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+std::pair<std::string, int> split_host_port(const std::string& flag, const std::string& a) {
+  const auto c = a.rfind(':');
+  int port = -1;
+  try {
+    if (c != std::string::npos) port = std::stoi(a.substr(c + 1));
+  } catch (...) {
+  }
+  if (c == std::string::npos || port < 0 || port > 65535)
+    throw std::invalid_argument(flag + ": '" + a + "' is not HOST:PORT with PORT in [0, 65535]");
+  return {a.substr(0, c), port};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string listen, http, data, tokens_path, cert, key, worker, mpirun = "mpirun";
+  erg::server::ManagerConfig cfg;
+  try {
+    for (int i = 1; i < argc; ++i) {
+      const std::string a = argv[i];
+      if (a == "--help" || a == "-h") {
+        usage();
+        return 0;
+      }
+      if (i + 1 >= argc) throw std::invalid_argument(a + ": needs a value");
+      const std::string v = argv[++i];
+      auto number = [&](double lo, double hi) {
+        double x = 0;
+        try {
+          size_t used = 0;
+          x = std::stod(v, &used);
+          if (used != v.size()) throw std::invalid_argument("");
+        } catch (...) {
+          throw std::invalid_argument(a + ": '" + v + "' is not a number");
+        }
+        if (x < lo || x > hi)
+          throw std::invalid_argument(a + ": " + v + " is out of range [" + std::to_string(lo) +
+                                      ", " + std::to_string(hi) + "]");
+        return x;
+      };
+      if (a == "--listen")
+        listen = v;
+      else if (a == "--http")
+        http = v;
+      else if (a == "--data")
+        data = v;
+      else if (a == "--tokens")
+        tokens_path = v;
+      else if (a == "--tls-cert")
+        cert = v;
+      else if (a == "--tls-key")
+        key = v;
+      else if (a == "--worker")
+        worker = v;
+      else if (a == "--mpirun")
+        mpirun = v;
+      else if (a == "--max-running")
+        cfg.max_running = static_cast<int>(number(1, 10000));
+      else if (a == "--max-ranks")
+        cfg.max_ranks = static_cast<int>(number(1, 1e6));
+      else if (a == "--cancel-grace")
+        cfg.cancel_grace_s = number(0, 86400);
+      else if (a == "--max-job-disk")
+        cfg.max_job_disk_bytes = static_cast<std::int64_t>(number(0, 1e18));
+      else if (a == "--tenant-cell-steps")
+        cfg.tenant_cell_steps = number(0, 1e30);
+      else
+        throw std::invalid_argument("unknown flag " + a);
+    }
+    if (listen.empty() || data.empty() || tokens_path.empty())
+      throw std::invalid_argument("--listen, --data and --tokens are required");
+    if (cert.empty() != key.empty())
+      throw std::invalid_argument("--tls-cert and --tls-key go together");
+  } catch (const std::exception& e) {
+    std::cerr << "ergd: " << e.what() << "\n";
+    usage();
+    return 2;
+  }
+  if (worker.empty()) {
+    std::error_code ec;
+    const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+    worker = (!ec && fs::exists(self.parent_path() / "erg-worker"))
+                 ? (self.parent_path() / "erg-worker").string()
+                 : "erg-worker";
+  }
+
+  // Signals go to one thread (sigwait); every other thread, and the workers
+  // ergd starts (they unblock them), never see them asynchronously.
+  sigset_t sigs;
+  sigemptyset(&sigs);
+  sigaddset(&sigs, SIGTERM);
+  sigaddset(&sigs, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &sigs, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+
+  try {
+    fs::create_directories(data);
+    erg::server::Tokens tokens(tokens_path);
+    erg::server::JobStore store((fs::path(data) / "ergd.sqlite").string());
+    erg::server::Metrics metrics;
+    erg::server::LocalLauncher launcher(worker, mpirun);
+    cfg.data_dir = data;
+    erg::server::JobManager manager(store, launcher, metrics, cfg);
+    manager.start();
+
+    erg::server::JobService service(manager, tokens, metrics);
+    grpc::EnableDefaultHealthCheckService(true);
+    grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+    grpc::ServerBuilder builder;
+    std::shared_ptr<grpc::ServerCredentials> creds = grpc::InsecureServerCredentials();
+    if (!cert.empty()) {
+      grpc::SslServerCredentialsOptions ssl;
+      ssl.pem_key_cert_pairs.push_back({read_file(key), read_file(cert)});
+      creds = grpc::SslServerCredentials(ssl);
+    }
+    int port = 0;
+    builder.AddListeningPort(listen, creds, &port);
+    builder.SetMaxReceiveMessageSize(4 << 20);  // specs are bounded far below this
+    builder.SetMaxSendMessageSize(4 << 20);
+    grpc::ResourceQuota quota("ergd");
+    quota.SetMaxThreads(512);  // streams hold a thread each (watchers, downloads)
+    builder.SetResourceQuota(quota);
+    builder.RegisterService(&service);
+    std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+    if (!server || port == 0) throw std::runtime_error("cannot listen on " + listen + " (gRPC)");
+    if (auto* health = server->GetHealthCheckService())
+      health->SetServingStatus("erg.v1.JobService", true);
+
+    std::unique_ptr<erg::server::HttpApi> web;
+    if (!http.empty()) {
+      auto [host, hport] = split_host_port("--http", http);
+      web = std::make_unique<erg::server::HttpApi>(manager, tokens, metrics, cert, key);
+      web->start(host, hport);
+    }
+    std::cerr << "ergd: serving erg.v1.JobService on " << listen << (cert.empty() ? "" : " (TLS)")
+              << (http.empty() ? "" : ", HTTP on " + http) << ", data in " << data << ", at most "
+              << cfg.max_running << " jobs at once, " << launcher.name() << " launcher (" << worker
+              << ")" << std::endl;
+
+    int sig = 0;
+    sigwait(&sigs, &sig);
+    std::cerr << "ergd: signal " << sig << ": stopping; running jobs checkpoint and resume at the "
+              << "next start" << std::endl;
+    if (auto* health = server->GetHealthCheckService())
+      health->SetServingStatus("erg.v1.JobService", false);
+    server->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+    if (web) web->stop();
+    manager.shutdown();
+    std::cerr << "ergd: stopped" << std::endl;
+  } catch (const std::exception& e) {
+    std::cerr << "ergd: " << e.what() << std::endl;
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,602 @@
+#include "scheduler/job_manager.h"
+
+#include <google/protobuf/util/json_util.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "job/progress_line.h"
+#include "job/spec.h"
+
+namespace erg::server {
+
+namespace fs = std::filesystem;
+using erg::v1::Job;
+using erg::v1::JobEvent;
+using erg::v1::JobState;
+
+namespace {
+
+double mono_s() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::int64_t now_ms() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+std::string new_job_id() {
+  static std::mutex mu;
+  static std::mt19937_64 rng{std::random_device{}()};
+  std::lock_guard lock(mu);
+  char buf[24];
+  std::snprintf(buf, sizeof buf, "j-%016llx", static_cast<unsigned long long>(rng()));
+  return buf;
+}
+
+// Writes text to path through a temporary and a rename (the worker only
+// ever sees complete steering files; ergd never leaves a half-written file).
+void write_file_atomic(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    f << text;
+    f.flush();
+    if (!f) throw std::runtime_error("cannot write " + tmp);
+  }
+  fs::rename(tmp, path);
+}
+
+std::int64_t dir_bytes(const fs::path& dir) {
+  std::int64_t total = 0;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::end(it);
+       it.increment(ec)) {
+    std::error_code e2;
+    if (it->is_regular_file(e2)) total += static_cast<std::int64_t>(it->file_size(e2));
+  }
+  return total;
+}
+
+double num(const std::map<std::string, std::string>& ev, const char* k) {
+  auto it = ev.find(k);
+  return it == ev.end() ? 0.0 : std::atof(it->second.c_str());
+}
+
+std::string str(const std::map<std::string, std::string>& ev, const char* k) {
+  auto it = ev.find(k);
+  return it == ev.end() ? std::string() : it->second;
+}
+
+}  // namespace
+
+JobManager::JobManager(JobStore& store, Launcher& launcher, Metrics& metrics, ManagerConfig cfg)
+    : store_(store), launcher_(launcher), metrics_(metrics), cfg_(std::move(cfg)) {
+  if (cfg_.max_ranks <= 0)
+    cfg_.max_ranks = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  fs::create_directories(fs::path(cfg_.data_dir) / "jobs");
+}
+
+JobManager::~JobManager() {
+  stopping_ = true;
+  cv_.notify_all();
+  if (scheduler_.joinable()) scheduler_.join();
+}
+
+std::string JobManager::job_dir(const std::string& id) const {
+  return (fs::path(cfg_.data_dir) / "jobs" / id).string();
+}
+
+std::string JobManager::snapshot_path(const std::string& id, std::int64_t step) const {
+  char name[40];
+  std::snprintf(name, sizeof name, "step_%08lld.h5", static_cast<long long>(step));
+  return job_dir(id) + "/run/snapshots/" + name;
+}
+
+std::string JobManager::preview_path(const std::string& id, std::int64_t step) const {
+  char name[40];
+  std::snprintf(name, sizeof name, "step_%08lld.png", static_cast<long long>(step));
+  return job_dir(id) + "/run/previews/" + name;
+}
+
+double JobManager::cell_steps_of(const Job& job) const {
+  const auto& d = job.spec().domain();
+  const double left = static_cast<double>(job.spec().run().steps() - job.progress().step());
+  return static_cast<double>(d.nx()) * static_cast<double>(d.ny()) * std::max(0.0, left);
+}
+
+std::string JobManager::log_tail(const std::string& id, int lines) const {
+  std::ifstream f(job_dir(id) + "/worker.log");
+  std::deque<std::string> tail;
+  std::string line;
+  while (std::getline(f, line)) {
+    tail.push_back(line);
+    if (static_cast<int>(tail.size()) > lines) tail.pop_front();
+  }
+  std::string out;
+  for (auto& l : tail) out += l + "\n";
+  return out;
+}
+
+void JobManager::event_locked(const Job& job, JobEvent ev) {
+  ev.set_state(job.state());
+  store_.append_event(job.id(), std::move(ev));
+}
+
+void JobManager::set_state_locked(Job& job, JobState s, const std::string& note) {
+  job.set_state(s);
+  store_.update(job);
+  JobEvent ev;
+  ev.set_state_changed(s);
+  event_locked(job, ev);
+  if (!note.empty()) {
+    JobEvent m;
+    m.set_message(note);
+    event_locked(job, m);
+  }
+}
+
+// ---- calls ----------------------------------------------------------------
+
+Job JobManager::submit(const std::string& tenant, const erg::v1::SubmitJobRequest& req) {
+  if (req.idempotency_key().size() > 128)
+    throw ApiError(grpc::StatusCode::INVALID_ARGUMENT,
+                   "idempotency_key: " + std::to_string(req.idempotency_key().size()) +
+                       " characters; at most 128");
+  if (!req.idempotency_key().empty())
+    if (auto existing = store_.by_key(tenant, req.idempotency_key()))
+      return get(tenant, existing->id());
+
+  erg::v1::JobSpec spec = req.spec();
+  const auto bytes = static_cast<std::int64_t>(spec.ByteSizeLong());
+  if (bytes > cfg_.max_spec_bytes)
+    throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, "spec: " + std::to_string(bytes) +
+                                                           " bytes; at most " +
+                                                           std::to_string(cfg_.max_spec_bytes));
+  std::vector<std::string> problems;
+  const auto& L = spec.layers();
+  const std::pair<const char*, const erg::v1::Layer*> layers[] = {{"bedrock", &L.bedrock()},
+                                                                  {"sand", &L.sand()},
+                                                                  {"vegetation", &L.vegetation()},
+                                                                  {"resistance", &L.resistance()}};
+  for (const auto& [name, layer] : layers)
+    if (layer->has_map())
+      problems.push_back(std::string("layers.") + name +
+                         ".map: map files are not accepted by ergd (it does not read its own "
+                         "file system for a tenant); use a generator, or erg run locally");
+  if (problems.empty()) {
+    job::apply_defaults(spec);
+    problems = job::validate(spec, "/nonexistent");
+  }
+  const auto& res = req.resources();
+  if (res.ranks() < 0 || res.ranks() > cfg_.max_ranks)
+    problems.push_back("resources.ranks: " + std::to_string(res.ranks()) + " is out of range [0, " +
+                       std::to_string(cfg_.max_ranks) + "] (ergd --max-ranks)");
+  if (res.threads_per_rank() < 0 || res.threads_per_rank() > 1024)
+    problems.push_back("resources.threads_per_rank: " + std::to_string(res.threads_per_rank()) +
+                       " is out of range [0, 1024]");
+  if (!problems.empty()) {
+    std::string msg;
+    for (const auto& p : problems) msg += (msg.empty() ? "" : "\n") + p;
+    throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, msg);
+  }
+
+  Job job;
+  job.set_id(new_job_id());
+  job.set_tenant(tenant);
+  job.set_state(erg::v1::QUEUED);
+  *job.mutable_spec() = spec;
+  *job.mutable_resources() = res;
+  if (job.resources().ranks() == 0) job.mutable_resources()->set_ranks(1);
+  job.mutable_progress()->set_total_steps(spec.run().steps());
+  job.mutable_progress()->set_latest_snapshot_step(-1);
+  job.set_created_unix_ms(now_ms());
+  job.set_idempotency_key(req.idempotency_key());
+
+  std::lock_guard lock(mu_);
+  if (cfg_.tenant_cell_steps > 0) {
+    double queued = cell_steps_of(job);
+    for (const auto& j : store_.in_states({erg::v1::QUEUED, erg::v1::RUNNING}))
+      if (j.tenant() == tenant) queued += cell_steps_of(j);
+    if (queued > cfg_.tenant_cell_steps) {
+      char msg[256];
+      std::snprintf(msg, sizeof msg,
+                    "tenant %s: queued and running work would be %.3g cells x steps; the limit "
+                    "is %.3g (ergd --tenant-cell-steps)",
+                    tenant.c_str(), queued, cfg_.tenant_cell_steps);
+      throw ApiError(grpc::StatusCode::RESOURCE_EXHAUSTED, msg);
+    }
+  }
+  const std::string dir = job_dir(job.id());
+  fs::create_directories(dir + "/steer");
+  write_file_atomic(dir + "/job.json", job::to_json(spec));
+  auto [stored, created] = store_.insert(job);
+  if (!created) {
+    fs::remove_all(dir);  // a concurrent submit with the same key won
+    return stored;
+  }
+  JobEvent ev;
+  ev.set_state_changed(erg::v1::QUEUED);
+  event_locked(stored, ev);
+  dirty_ = true;
+  cv_.notify_all();
+  return stored;
+}
+
+Job JobManager::get(const std::string& tenant, const std::string& id) {
+  std::lock_guard lock(mu_);
+  if (auto it = running_.find(id); it != running_.end() && it->second.job.tenant() == tenant)
+    return it->second.job;
+  auto job = store_.get(id);
+  // Another tenant's job is reported exactly like a job that does not exist.
+  if (!job || job->tenant() != tenant)
+    throw ApiError(grpc::StatusCode::NOT_FOUND, "job " + id + " not found");
+  return *job;
+}
+
+std::vector<Job> JobManager::list(const std::string& tenant, int state, std::int64_t before_seq,
+                                  int limit, std::int64_t* last_seq) {
+  auto jobs = store_.list(tenant, state, before_seq, limit, last_seq);
+  std::lock_guard lock(mu_);
+  for (auto& j : jobs)
+    if (auto it = running_.find(j.id()); it != running_.end()) j = it->second.job;
+  return jobs;
+}
+
+Job JobManager::cancel(const std::string& tenant, const std::string& id) {
+  Job job = get(tenant, id);
+  std::lock_guard lock(mu_);
+  if (auto it = running_.find(id); it != running_.end()) {
+    Running& r = it->second;
+    if (!r.cancel_requested) {
+      r.cancel_requested = true;
+      r.stop_sent_at = mono_s();
+      launcher_.stop(r.launcher_id, false);
+      JobEvent m;
+      m.set_message("cancel requested: the worker checkpoints and stops");
+      event_locked(r.job, m);
+    }
+    return r.job;
+  }
+  auto fresh = store_.get(id);
+  if (fresh && fresh->state() == erg::v1::QUEUED) {
+    fresh->set_finished_unix_ms(now_ms());
+    set_state_locked(*fresh, erg::v1::CANCELLED);
+    return *fresh;
+  }
+  return fresh ? *fresh : job;
+}
+
+erg::v1::SteerJobResponse JobManager::steer(const std::string& tenant, const std::string& id,
+                                            const std::vector<erg::v1::Event>& events) {
+  (void)get(tenant, id);
+  if (events.empty())
+    throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, "events: at least one event is needed");
+  if (events.size() > 1000)
+    throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, "events: at most 1000 per call");
+  std::unique_lock lock(mu_);
+  auto it = running_.find(id);
+  if (it == running_.end() || it->second.cancel_requested || it->second.stop_for_shutdown)
+    throw ApiError(grpc::StatusCode::FAILED_PRECONDITION,
+                   "job " + id + " is not running; only a RUNNING job can be steered");
+  // Validate as the worker will: the recorded spec with the events appended.
+  erg::v1::JobSpec trial = it->second.job.spec();
+  const std::int64_t step = it->second.job.progress().step();
+  for (auto e : events) {
+    e.set_step(step);
+    *trial.add_events() = e;
+  }
+  job::apply_defaults(trial);
+  auto problems = job::validate(trial, "/nonexistent");
+  if (!problems.empty()) {
+    std::string msg;
+    for (const auto& p : problems) msg += (msg.empty() ? "" : "\n") + p;
+    throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, msg);
+  }
+  std::vector<std::string> files;
+  const std::uint64_t seq = ++steer_seq_;
+  for (size_t k = 0; k < events.size(); ++k) {
+    char name[64];
+    std::snprintf(name, sizeof name, "%013lld-%06llu-%04zu.json", static_cast<long long>(now_ms()),
+                  static_cast<unsigned long long>(seq), k);
+    std::string json;
+    google::protobuf::util::JsonPrintOptions opt;
+    opt.preserve_proto_field_names = true;
+    (void)google::protobuf::util::MessageToJsonString(events[k], &json, opt);
+    write_file_atomic(job_dir(id) + "/steer/" + name, json);
+    files.push_back(name);
+  }
+  // The worker applies them at its next step boundary and says so.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  erg::v1::SteerJobResponse out;
+  for (;;) {
+    auto r = running_.find(id);
+    if (r == running_.end())
+      throw ApiError(grpc::StatusCode::FAILED_PRECONDITION,
+                     "job " + id + " ended before the steering events were applied");
+    size_t done = 0;
+    std::string rejected;
+    for (const auto& f : files) {
+      if (r->second.steered.count(f)) ++done;
+      if (auto rj = r->second.steer_rejected.find(f); rj != r->second.steer_rejected.end()) {
+        ++done;
+        rejected += (rejected.empty() ? "" : "\n") + rj->second;
+      }
+    }
+    if (done == files.size()) {
+      if (!rejected.empty()) throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, rejected);
+      for (const auto& f : files) *out.add_applied() = r->second.steered.at(f);
+      *out.mutable_job() = r->second.job;
+      return out;
+    }
+    if (cv_.wait_until(lock, deadline) == std::cv_status::timeout)
+      throw ApiError(grpc::StatusCode::DEADLINE_EXCEEDED,
+                     "the worker did not apply the steering events within 120 s");
+  }
+}
+
+// ---- running jobs -----------------------------------------------------------
+
+void JobManager::launch_locked(Job job) {
+  const std::string dir = job_dir(job.id());
+  const fs::path run = fs::path(dir) / "run";
+  bool has_checkpoint = false;
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(run / "checkpoints", ec); !ec && it != fs::end(it);
+       it.increment(ec))
+    if (it->path().extension() == ".h5") has_checkpoint = true;
+  if (!has_checkpoint) fs::remove_all(run, ec);  // a start that wrote no checkpoint: start over
+  fs::create_directories(fs::path(dir) / "steer");
+  job.set_attempts(job.attempts() + 1);
+  LaunchRequest req;
+  req.job_id = job.id();
+  req.job_file = dir + "/job.json";
+  req.out_dir = run.string();
+  req.steer_dir = dir + "/steer";
+  req.log_path = dir + "/worker.log";
+  req.resume = has_checkpoint;
+  req.ranks = std::max(1, job.resources().ranks());
+  req.threads = job.resources().threads_per_rank();
+  const std::string id = job.id();
+  Running& r = running_[id];
+  try {
+    r.launcher_id =
+        launcher_.start(req, {[this, id](const std::string& line) { on_line(id, line); },
+                              [this, id](int code) { on_exit(id, code); }});
+  } catch (const std::exception& e) {
+    running_.erase(id);
+    job.set_failure_reason(std::string("cannot start the worker: ") + e.what());
+    job.set_finished_unix_ms(now_ms());
+    set_state_locked(job, erg::v1::FAILED);
+    return;
+  }
+  job.set_launcher_id(r.launcher_id);
+  if (job.started_unix_ms() == 0) job.set_started_unix_ms(now_ms());
+  r.job = job;
+  r.last_saved = mono_s();
+  set_state_locked(r.job, erg::v1::RUNNING,
+                   has_checkpoint ? "resumed from the last checkpoint (attempt " +
+                                        std::to_string(job.attempts()) + ")"
+                                  : "");
+}
+
+void JobManager::on_line(const std::string& id, const std::string& line) {
+  const auto ev = job::parse_progress_line(line);
+  const std::string kind = str(ev, "event");
+  std::lock_guard lock(mu_);
+  auto it = running_.find(id);
+  if (it == running_.end()) return;
+  Running& r = it->second;
+  auto& p = *r.job.mutable_progress();
+  const double now = mono_s();
+  if (kind == "start") {
+    p.set_step(static_cast<std::int64_t>(num(ev, "step")));
+    p.set_total_steps(static_cast<std::int64_t>(num(ev, "steps")));
+  } else if (kind == "progress" || kind == "done") {
+    p.set_step(static_cast<std::int64_t>(num(ev, "step")));
+    if (kind == "progress") {
+      p.set_total_steps(static_cast<std::int64_t>(num(ev, "steps")));
+      p.set_steps_per_s(num(ev, "steps_per_s"));
+      p.set_eta_s(num(ev, "eta_s"));
+      p.set_time_days(num(ev, "time_days"));
+      metrics_.set_rate(id, r.job.tenant(), p.steps_per_s());
+    } else {
+      p.set_eta_s(0);
+    }
+    if (ev.count("sand_units_total")) p.set_sand_units_total(str(ev, "sand_units_total"));
+    if (ev.count("airborne_units_total"))
+      p.set_airborne_units_total(str(ev, "airborne_units_total"));
+    if (kind == "done" || now - r.last_saved >= 1.0) {
+      r.last_saved = now;
+      store_.update(r.job);
+    }
+    if (kind == "done" || now - r.last_progress_event >= 1.0) {
+      r.last_progress_event = now;
+      JobEvent e;
+      *e.mutable_progress() = p;
+      event_locked(r.job, e);
+    }
+  } else if (kind == "snapshot") {
+    const auto step = static_cast<std::int64_t>(num(ev, "step"));
+    auto* steps = r.job.mutable_snapshot_steps();
+    if (std::find(steps->begin(), steps->end(), step) == steps->end()) steps->Add(step);
+    p.set_latest_snapshot_step(step);
+    store_.update(r.job);
+    JobEvent e;
+    e.set_snapshot_step(step);
+    event_locked(r.job, e);
+  } else if (kind == "steered") {
+    erg::v1::Event applied;
+    google::protobuf::util::JsonParseOptions opt;
+    if (!google::protobuf::util::JsonStringToMessage(str(ev, "event_json"), &applied, opt).ok())
+      return;
+    applied.set_step(static_cast<std::int64_t>(num(ev, "step")));
+    *r.job.mutable_spec()->add_events() = applied;  // the recorded spec
+    r.steered[str(ev, "file")] = applied;
+    store_.update(r.job);
+    JobEvent e;
+    *e.mutable_steered() = applied;
+    event_locked(r.job, e);
+    cv_.notify_all();
+  } else if (kind == "steer_rejected") {
+    r.steer_rejected[str(ev, "file")] = str(ev, "reason");
+    cv_.notify_all();
+  } else if (kind == "failed") {
+    r.failure = str(ev, "reason");
+  }
+}
+
+void JobManager::finish_locked(Running& r, JobState state, const std::string& reason) {
+  Job& job = r.job;
+  job.set_finished_unix_ms(now_ms());
+  job.set_disk_bytes(dir_bytes(job_dir(job.id())));
+  if (state == erg::v1::FAILED) {
+    job.set_failure_reason(reason);
+    job.set_log_tail(log_tail(job.id(), 20));
+  }
+  metrics_.remove_rate(job.id(), job.tenant());
+  set_state_locked(job, state);
+}
+
+void JobManager::on_exit(const std::string& id, int code) {
+  std::lock_guard lock(mu_);
+  auto it = running_.find(id);
+  if (it == running_.end()) return;
+  Running& r = it->second;
+  if (code == 0 && r.failure.empty()) {
+    finish_locked(r, erg::v1::SUCCEEDED, "");
+  } else if (r.cancel_requested) {
+    finish_locked(r, erg::v1::CANCELLED, "");
+  } else if (r.stop_for_shutdown) {
+    store_.update(r.job);  // stays RUNNING: the next ergd resumes it
+    metrics_.remove_rate(id, r.job.tenant());
+  } else {
+    finish_locked(
+        r, erg::v1::FAILED,
+        !r.failure.empty() ? r.failure : "the worker exited with code " + std::to_string(code));
+  }
+  running_.erase(it);
+  dirty_ = true;
+  cv_.notify_all();
+}
+
+void JobManager::start_next_locked() {
+  if (stopping_ || static_cast<int>(running_.size()) >= cfg_.max_running) return;
+  std::vector<Job> queued = store_.in_states({erg::v1::QUEUED});
+  while (!queued.empty() && static_cast<int>(running_.size()) < cfg_.max_running) {
+    std::map<std::string, int> per_tenant;
+    for (const auto& [id, r] : running_) ++per_tenant[r.job.tenant()];
+    // Oldest job of the tenant with the fewest running jobs.
+    size_t best = 0;
+    for (size_t i = 1; i < queued.size(); ++i)
+      if (per_tenant[queued[i].tenant()] < per_tenant[queued[best].tenant()]) best = i;
+    Job job = queued[best];
+    queued.erase(queued.begin() + static_cast<long>(best));
+    launch_locked(std::move(job));
+  }
+}
+
+void JobManager::refresh_metrics() {
+  const char* names[] = {"", "QUEUED", "RUNNING", "SUCCEEDED", "FAILED", "CANCELLED"};
+  std::map<int, std::int64_t> counts;
+  for (auto [state, n] : store_.count_by_state()) counts[state] = n;
+  for (int s = 1; s <= 5; ++s) metrics_.set_jobs(names[s], static_cast<double>(counts[s]));
+}
+
+void JobManager::scheduler_loop() {
+  double last_metrics = 0;
+  std::unique_lock lock(mu_);
+  while (!stopping_) {
+    cv_.wait_for(lock, std::chrono::milliseconds(200));
+    if (stopping_) break;
+    const double now = mono_s();
+    for (auto& [id, r] : running_) {
+      // Forced stop after the grace period (cancel, or a limit).
+      if (r.stop_sent_at > 0 && now - r.stop_sent_at > cfg_.cancel_grace_s) {
+        launcher_.stop(r.launcher_id, true);
+        r.stop_sent_at = now;  // again after another grace period if need be
+      }
+      if (now - r.last_disk_check >= 2.0) {
+        r.last_disk_check = now;
+        r.job.set_disk_bytes(dir_bytes(job_dir(id)));
+        if (cfg_.max_job_disk_bytes > 0 && r.job.disk_bytes() > cfg_.max_job_disk_bytes &&
+            r.failure.empty()) {
+          r.failure = "the job's output is " + std::to_string(r.job.disk_bytes()) +
+                      " bytes, over the per-job disk limit of " +
+                      std::to_string(cfg_.max_job_disk_bytes) +
+                      " (ergd --max-job-disk); write fewer snapshots (run.snapshot_every)";
+          r.stop_sent_at = now;
+          launcher_.stop(r.launcher_id, false);
+        }
+      }
+    }
+    if (dirty_) {
+      dirty_ = false;
+      start_next_locked();
+    }
+    if (now - last_metrics >= 1.0) {
+      last_metrics = now;
+      refresh_metrics();
+    }
+  }
+}
+
+void JobManager::start() {
+  // Jobs a previous ergd left RUNNING: their workers got SIGTERM when it
+  // died (or ergd stopped them on shutdown) and checkpointed. Wait for any
+  // still writing, then queue them again ahead of newer jobs (same seq).
+  for (Job job : store_.in_states({erg::v1::RUNNING})) {
+    if (!job.launcher_id().empty() && launcher_.alive(job.launcher_id())) {
+      launcher_.stop(job.launcher_id(), false);
+      const double t0 = mono_s();
+      while (launcher_.alive(job.launcher_id())) {
+        if (mono_s() - t0 > cfg_.cancel_grace_s) launcher_.stop(job.launcher_id(), true);
+        ::usleep(100 * 1000);
+      }
+    }
+    std::lock_guard lock(mu_);
+    set_state_locked(job, erg::v1::QUEUED,
+                     "ergd restarted while the job ran: it resumes from its last checkpoint");
+  }
+  {
+    std::lock_guard lock(mu_);
+    dirty_ = true;
+    refresh_metrics();
+  }
+  scheduler_ = std::thread([this] { scheduler_loop(); });
+}
+
+void JobManager::shutdown() {
+  {
+    std::unique_lock lock(mu_);
+    stopping_ = true;
+    for (auto& [id, r] : running_) {
+      r.stop_for_shutdown = true;
+      r.stop_sent_at = mono_s();
+      launcher_.stop(r.launcher_id, false);
+    }
+    const double t0 = mono_s();
+    bool forced = false;
+    while (!running_.empty()) {
+      cv_.wait_for(lock, std::chrono::milliseconds(100));
+      if (!forced && mono_s() - t0 > cfg_.cancel_grace_s) {
+        forced = true;
+        for (auto& [id, r] : running_) launcher_.stop(r.launcher_id, true);
+      }
+      if (mono_s() - t0 > cfg_.cancel_grace_s + 10) break;
+    }
+  }
+  cv_.notify_all();
+  if (scheduler_.joinable()) scheduler_.join();
+}
+
+}  // namespace erg::server
