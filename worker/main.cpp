@@ -43,6 +43,7 @@ int main(int argc, char** argv) {
                         : flags.backend == "cuda" ? erg::BackendKind::kCuda
                                                   : erg::BackendKind::kAuto;
   cfg.progress_fd = flags.progress_fd;
+  cfg.steer_dir = flags.steer_dir;
   cfg.quiet = flags.quiet;
   const int code = erg::run_job(cfg);
   MPI_Finalize();

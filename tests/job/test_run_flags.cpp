@@ -24,7 +24,7 @@ TEST(RunFlags, AcceptsEveryDocumentedFlag) {
   const RunFlags f =
       parse_run_flags({"job.json", "--out", "runs/a", "--steps", "250", "--snapshot-every", "25",
                        "--checkpoint-every", "0", "--threads", "4", "--backend", "cpu",
-                       "--progress-fd", "3", "--quiet"});
+                       "--progress-fd", "3", "--quiet", "--steer-dir", "runs/a.steer"});
   EXPECT_EQ(f.job_path, "job.json");
   EXPECT_EQ(f.out_dir, "runs/a");
   EXPECT_TRUE(f.resume_dir.empty());
@@ -35,6 +35,7 @@ TEST(RunFlags, AcceptsEveryDocumentedFlag) {
   EXPECT_EQ(f.backend, "cpu");
   EXPECT_EQ(f.progress_fd, 3);
   EXPECT_TRUE(f.quiet);
+  EXPECT_EQ(f.steer_dir, "runs/a.steer");
 }
 
 TEST(RunFlags, DefaultsWhenFlagsAreOmitted) {
@@ -48,6 +49,7 @@ TEST(RunFlags, DefaultsWhenFlagsAreOmitted) {
   EXPECT_EQ(f.backend, "auto");
   EXPECT_EQ(f.progress_fd, -1);
   EXPECT_FALSE(f.quiet);
+  EXPECT_TRUE(f.steer_dir.empty());
   for (const char* b : {"auto", "cpu", "cuda"})
     EXPECT_EQ(parse_run_flags({"j.json", "--out", "o", "--backend", b}).backend, b);
 }
@@ -79,6 +81,8 @@ TEST(RunFlags, RejectsBadValuesNamingTheFlag) {
       {{"j.json", "--out", "o", "--threads", "0"}, {"--threads 0", "[1, 4096]"}},
       {{"j.json", "--out", "o", "--threads", "5000"}, {"--threads 5000"}},
       {{"j.json", "--out", "o", "--progress-fd", "-2"}, {"--progress-fd -2"}},
+      {{"j.json", "--out", "o", "--steer-dir"}, {"--steer-dir", "missing value"}},
+      {{"j.json", "--out", "o", "--steer-dir", ""}, {"--steer-dir"}},
       {{"j.json", "--out", "o", "--backend", "gpu"}, {"--backend gpu", "auto, cpu or cuda"}},
       {{"j.json", "--out", "o", "--fast"}, {"--fast", "unknown flag"}},
       {{"j.json", "--out", "o", "-x"}, {"-x", "unknown flag"}},
@@ -105,7 +109,7 @@ TEST(RunFlags, RejectsBadValuesNamingTheFlag) {
 TEST(RunFlags, UsageNamesTheFlags) {
   const std::string u = run_flags_usage();
   for (const char* flag : {"--out", "--steps", "--snapshot-every", "--checkpoint-every",
-                           "--threads", "--backend", "--resume"})
+                           "--threads", "--backend", "--resume", "--progress-fd", "--steer-dir"})
     EXPECT_NE(u.find(flag), std::string::npos) << flag;
   EXPECT_NE(error_of({"j.json", "--bogus"}).find("usage"), std::string::npos);
 }

@@ -42,7 +42,10 @@ RunFlags parse_run_flags(const std::vector<std::string>& args) {
       f.threads = static_cast<int>(parse_count(a, value(), 1, 4096));
     else if (a == "--progress-fd")
       f.progress_fd = static_cast<int>(parse_count(a, value(), 0, 65535));
-    else if (a == "--quiet")
+    else if (a == "--steer-dir") {
+      f.steer_dir = value();
+      if (f.steer_dir.empty()) throw std::invalid_argument("--steer-dir: expected a directory");
+    } else if (a == "--quiet")
       f.quiet = true;
     else if (a == "--ranks")
       f.ranks = static_cast<int>(parse_count(a, value(), 1, 4096));
@@ -79,7 +82,10 @@ RunFlags parse_run_flags(const std::vector<std::string>& args) {
 std::string run_flags_usage() {
   return "usage: run JOB.json --out DIR [--steps N] [--snapshot-every K] [--checkpoint-every C]\n"
          "                    [--threads T] [--backend auto|cpu|cuda] [--ranks P] [--tiles PXxPY]\n"
-         "       run --resume DIR [--steps N] [...]";
+         "       run --resume DIR [--steps N] [...]\n"
+         "erg-worker only: [--progress-fd FD] (JSON-lines events) [--quiet]\n"
+         "                 [--steer-dir DIR] (apply DIR/*.json, one erg.v1.Event each, at the\n"
+         "                 next step boundary; renamed .applied or .rejected)";
 }
 
 }  // namespace erg::job

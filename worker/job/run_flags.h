@@ -1,6 +1,7 @@
 // The command-line flags of a run, parsed in one place for `erg run`,
 // `erg-worker` (and, later, `erg submit`): --steps, --snapshot-every,
-// --checkpoint-every, --threads, --backend, --out, --resume, --ranks, --tiles.
+// --checkpoint-every, --threads, --backend, --out, --resume, --ranks, --tiles,
+// and erg-worker's own --progress-fd and --steer-dir.
 #pragma once
 
 #include <string>
@@ -20,6 +21,7 @@ struct RunFlags {
   int ranks = 0;                 // --ranks P (erg run starts P MPI ranks)
   std::string tiles;             // --tiles PXxPY (the tile grid; default: chosen)
   int progress_fd = -1;          // --progress-fd FD (erg-worker only)
+  std::string steer_dir;         // --steer-dir DIR (erg-worker only): events to apply
   bool quiet = false;            // --quiet
 };
 

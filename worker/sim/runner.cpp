@@ -1,5 +1,7 @@
 #include "sim/runner.h"
 
+#include <google/protobuf/util/json_util.h>
+#include <google/protobuf/util/message_differencer.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -34,6 +36,12 @@ std::string json_escape(const std::string& s) {
     if (c == '"' || c == '\\') o += '\\';
     if (c == '\n') {
       o += "\\n";
+      continue;
+    }
+    if (static_cast<unsigned char>(c) < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", static_cast<unsigned>(c));
+      o += buf;
       continue;
     }
     o += c;
@@ -138,6 +146,140 @@ void write_checkpoint(Simulation& sim, const std::string& dir, const Context& ct
   for (size_t i = 0; i + 2 < all.size(); ++i) fs::remove(all[i]);
 }
 
+// ---- steering (runner.h) ---------------------------------------------------
+
+constexpr std::uintmax_t kMaxSteerFileBytes = 1 << 20;
+
+struct SteerFile {
+  std::string name;  // NAME.json, in the steering directory
+  erg::v1::Event event;
+};
+
+std::string event_json(const erg::v1::Event& e) {
+  std::string out;
+  google::protobuf::util::JsonPrintOptions opt;
+  opt.preserve_proto_field_names = true;
+  (void)google::protobuf::util::MessageToJsonString(e, &out, opt);
+  return out;
+}
+
+// NAME.json -> NAME.applied / NAME.rejected, replacing an older one.
+void mark_steer_file(const std::string& dir, const std::string& name, const char* ext) {
+  std::error_code ec;
+  const fs::path from = fs::path(dir) / name;
+  fs::rename(from, fs::path(from).replace_extension(ext), ec);
+  if (ec) std::cerr << "erg: cannot rename steering file " << from << ": " << ec.message() << "\n";
+}
+
+// The problems an event adds to a valid spec, naming its fields as
+// "event.FIELD" (the file holds one event).
+std::vector<std::string> steer_problems(erg::v1::JobSpec check, const erg::v1::Event& e) {
+  const std::vector<std::string> before = job::validate(check);
+  *check.add_events() = e;
+  const std::string prefix = "events[" + std::to_string(check.events_size() - 1) + "]";
+  std::vector<std::string> out;
+  for (std::string p : job::validate(check)) {
+    if (std::find(before.begin(), before.end(), p) != before.end()) continue;
+    for (size_t k = p.find(prefix); k != std::string::npos; k = p.find(prefix, k))
+      p.replace(k, prefix.size(), "event");
+    out.push_back(p);
+  }
+  return out;
+}
+
+// Rank 0: the good events waiting in `dir`, in name order, to apply at the
+// start of `step` after the events of `spec`. Bad ones are renamed
+// NAME.rejected and reported here; the good ones are renamed by the caller
+// once they are recorded.
+std::vector<SteerFile> collect_steering(const std::string& dir, const erg::v1::JobSpec& spec,
+                                        std::int64_t step, Progress& progress, bool log) {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.size() > 5 && name[0] != '.' && name.compare(name.size() - 5, 5, ".json") == 0)
+      names.push_back(name);
+  }
+  std::vector<SteerFile> good;
+  if (names.empty()) return good;
+  std::sort(names.begin(), names.end());
+  // Validation without the layers: an event cannot change them, they were
+  // checked when the run began, and their map files need not be read again.
+  erg::v1::JobSpec check = spec;
+  check.clear_layers();
+  job::apply_defaults(check);
+  for (const auto& name : names) {
+    const fs::path path = fs::path(dir) / name;
+    std::string reason;
+    SteerFile f{name, {}};
+    const fs::file_status st = fs::status(path, ec);
+    if (ec || !fs::exists(st)) continue;  // taken away meanwhile
+    if (!fs::is_regular_file(st)) {
+      reason = "not a regular file";
+    } else if (fs::file_size(path, ec) > kMaxSteerFileBytes) {
+      reason = "larger than 1 MiB";
+    } else {
+      std::ifstream in(path, std::ios::binary);
+      if (!in) continue;  // taken away meanwhile
+      std::stringstream text;
+      text << in.rdbuf();
+      google::protobuf::util::JsonParseOptions opt;
+      opt.ignore_unknown_fields = false;
+      opt.case_insensitive_enum_parsing = true;
+      const auto parsed = google::protobuf::util::JsonStringToMessage(text.str(), &f.event, opt);
+      if (!parsed.ok()) {
+        reason = "not a valid erg.v1.Event: " + std::string(parsed.message());
+      } else {
+        f.event.set_step(step);
+        erg::v1::JobSpec filled;  // the event's defaults
+        *filled.add_events() = f.event;
+        job::apply_defaults(filled);
+        f.event = filled.events(0);
+        const auto problems = steer_problems(check, f.event);
+        for (const auto& p : problems) reason += (reason.empty() ? "" : "; ") + p;
+      }
+    }
+    if (reason.empty()) {
+      *check.add_events() = f.event;
+      good.push_back(std::move(f));
+      continue;
+    }
+    mark_steer_file(dir, name, ".rejected");
+    if (log)
+      std::cerr << "erg: steering " << name << " rejected at step " << step << ": " << reason
+                << "\n";
+    progress.emit("{\"event\":\"steer_rejected\",\"step\":" + std::to_string(step) +
+                  ",\"file\":\"" + json_escape(name) + "\",\"reason\":\"" + json_escape(reason) +
+                  "\"}");
+  }
+  return good;
+}
+
+// Resume: the events recorded in DIR/job.json when they extend the
+// checkpoint's (steered after the checkpoint was written).
+void adopt_recorded_events(erg::v1::JobSpec& spec, const std::string& job_json) {
+  if (!fs::exists(job_json)) return;
+  erg::v1::JobSpec recorded;
+  try {
+    std::ifstream in(job_json, std::ios::binary);
+    std::stringstream text;
+    text << in.rdbuf();
+    recorded = job::parse_json(text.str(), job_json);
+    job::apply_defaults(recorded);
+  } catch (const std::exception& e) {
+    std::cerr << "erg: ignoring the events of " << job_json << ": " << e.what() << "\n";
+    return;
+  }
+  if (recorded.events_size() <= spec.events_size()) return;
+  for (int k = 0; k < spec.events_size(); ++k)
+    if (!google::protobuf::util::MessageDifferencer::Equals(spec.events(k), recorded.events(k))) {
+      std::cerr << "erg: the events of " << job_json
+                << " do not extend the checkpoint's; continuing with the checkpoint's\n";
+      return;
+    }
+  *spec.mutable_events() = recorded.events();
+}
+
 void bcast(std::string& s, const Context& ctx) {
   long long n = static_cast<long long>(s.size());
   MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, ctx.comm);
@@ -207,6 +349,7 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
           erg::v1::JobSpec spec =
               job::parse_json(io::read_checkpoint(checkpoint).job_spec_json, checkpoint);
           job::apply_defaults(spec);
+          adopt_recorded_events(spec, cfg.out_dir + "/job.json");
           job::apply_overrides(spec, cfg.overrides);
           spec_json = job::to_json(spec);
         }
@@ -280,6 +423,7 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
     if (ctx.root()) {
       for (const char* sub : {"snapshots", "previews", "checkpoints"})
         fs::create_directories(fs::path(cfg.out_dir) / sub);
+      if (!cfg.steer_dir.empty()) fs::create_directories(cfg.steer_dir);
       if (!cfg.resume) write_atomic_text(cfg.out_dir + "/job.json", spec_json);
       if (cfg.resume && !cfg.quiet)
         std::cerr << "erg: resuming " << cfg.out_dir << " at step " << sim->step_index() << "\n";
@@ -294,6 +438,50 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
     if (!cfg.resume) {
       write_outputs(*sim, cfg.out_dir, previews, progress, ctx);
       if (run.checkpoint_every() > 0) write_checkpoint(*sim, cfg.out_dir, ctx);
+    }
+    // Steering: rank 0 finds the good events; every rank appends them
+    // before the next step. Collective once rank 0's decision is known.
+    const bool steering = !cfg.steer_dir.empty();                 // the same on every rank
+    const bool log_steering = !cfg.quiet && cfg.progress_fd < 0;  // else the events say it
+    std::vector<SteerFile> steered;
+    const auto apply_steering = [&]() {
+      std::vector<erg::v1::Event> events;
+      std::string bytes;
+      erg::v1::JobSpec carrier;
+      if (ctx.root()) {
+        for (const auto& f : steered) *carrier.add_events() = f.event;
+        if (ctx.tiled()) carrier.SerializeToString(&bytes);
+      }
+      if (ctx.tiled()) {
+        bcast(bytes, ctx);
+        if (!ctx.root() && !carrier.ParseFromString(bytes))
+          throw std::runtime_error("steering events: bad broadcast");
+      }
+      events.assign(carrier.events().begin(), carrier.events().end());
+      sim->add_events(events);
+      if (!ctx.root()) return;
+      // Recorded before the files say so: an applied file is in job.json.
+      write_atomic_text(cfg.out_dir + "/job.json", job::to_json(sim->spec()));
+      for (const auto& f : steered) {
+        mark_steer_file(cfg.steer_dir, f.name, ".applied");
+        if (log_steering)
+          std::cerr << "erg: steering " << f.name << " applied at step " << sim->step_index()
+                    << "\n";
+        progress.emit("{\"event\":\"steered\",\"step\":" + std::to_string(sim->step_index()) +
+                      ",\"file\":\"" + json_escape(f.name) +
+                      "\",\"event_json\":" + event_json(f.event) + "}");
+      }
+      steered.clear();
+    };
+    // Before the first step (one broadcast, only when steering).
+    if (steering && sim->step_index() < steps) {
+      int pending = 0;
+      if (ctx.root()) {
+        steered =
+            collect_steering(cfg.steer_dir, sim->spec(), sim->step_index(), progress, log_steering);
+        pending = steered.empty() ? 0 : 1;
+      }
+      if (bcast(pending, ctx)) apply_steering();
     }
     using Clock = std::chrono::steady_clock;
     const auto t0 = Clock::now();
@@ -315,6 +503,11 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
       if (ctx.root()) {
         if (last || std::chrono::duration<double>(now - last_report).count() >= 0.25) control |= 1;
         if (g_signal.load() != 0 && !last) control |= 2;
+        // Steering follows: events at step s, which the next step() applies.
+        if (steering && !last && !(control & 2)) {
+          steered = collect_steering(cfg.steer_dir, sim->spec(), s, progress, log_steering);
+          if (!steered.empty()) control |= 4;
+        }
       }
       control = bcast(control, ctx);
       const double elapsed = std::chrono::duration<double>(now - t0).count();
@@ -335,6 +528,7 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
         std::cerr << "erg: step " << s << "/" << steps << "  " << rate << " steps/s  ETA "
                   << fmt_duration(eta) << "\n";
       }
+      if (control & 4) apply_steering();
       if (control & 2) {
         write_checkpoint(*sim, cfg.out_dir, ctx);
         const int sig = bcast(g_signal.load(), ctx);

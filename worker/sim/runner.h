@@ -11,6 +11,26 @@
 // Every rank runs the pipeline on its tile; snapshots and checkpoints are
 // single files written collectively (parallel HDF5). Any rank's error aborts
 // the whole job with a message (MPI_Abort): no hang, no orphan ranks.
+//
+// Steering (RunConfig::steer_dir, erg-worker --steer-dir DIR): at every step
+// boundary before step S (the run's first step included, its end excluded)
+// rank 0 takes the files DIR/NAME.json in name order (other names, such as
+// NAME.json.tmp while a writer is still at it, are left alone), each one
+// erg.v1.Event in protobuf JSON. Its step, if any, is replaced by S; it is
+// defaults-filled and validated as the job's next event. A good one is
+// appended to the job's events on every rank (so it applies at the start of
+// step S after the job's own events at S, in file order, and is carried by
+// later checkpoints and snapshots), DIR_OUT/job.json is rewritten with it,
+// then the file is renamed NAME.applied and a "steered" progress event names
+// it. A bad one is renamed NAME.rejected with a "steer_rejected" event giving
+// the reason, and the run goes on. Tiled runs learn of pending steering from
+// the per-step control broadcast, so a step without any costs nothing more.
+// Re-running the recorded DIR_OUT/job.json reproduces the run bitwise.
+//
+// Resume: the checkpoint's spec lacks the events steered after it was
+// written. When DIR/job.json's events extend the checkpoint's (the
+// checkpoint's are a prefix), the run continues with job.json's, so the
+// steps it redoes see those events at the steps they were steered at.
 #pragma once
 
 #include <mpi.h>
@@ -30,6 +50,7 @@ struct RunConfig {
   RunOptions options;
   int tiles_x = 0, tiles_y = 0;  // --tiles PXxPY (0: chosen)
   int progress_fd = -1;          // JSON-lines progress events (rank 0) go here
+  std::string steer_dir;         // steering events to apply (see above); "" = none
   bool quiet = false;            // no periodic log lines on stderr
 };
 

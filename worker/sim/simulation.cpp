@@ -103,6 +103,14 @@ void Simulation::init_backend(const RunOptions& opt, const TileState& initial) {
   backend_->upload(initial);
 }
 
+void Simulation::add_events(const std::vector<erg::v1::Event>& events) {
+  if (events.empty()) return;
+  for (const auto& e : events) *spec_.add_events() = e;
+  // Nothing caches the event list: apply_events and wind::at_step read spec_
+  // at every step. The JSON goes into checkpoints and snapshots.
+  spec_json_ = job::to_json(spec_);
+}
+
 void Simulation::apply_events(std::int64_t step) {
   const double lx = model_.tile.gnx * static_cast<double>(model_.tile.cell_m);
   const double ly = model_.tile.gny * static_cast<double>(model_.tile.cell_m);

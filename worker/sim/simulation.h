@@ -57,6 +57,13 @@ class Simulation {
   // Advances one step: the step's events, then the pipeline.
   void step();
 
+  // Appends timeline events to the spec (steering a running job). They take
+  // effect like the job's own events: an event at step S applies at the start
+  // of step S, after the events listed before it, so one whose step is
+  // step_index() applies in the next step(). The spec in checkpoints and
+  // snapshots carries them. Every tile of a run must add the same events.
+  void add_events(const std::vector<erg::v1::Event>& events);
+
   std::int64_t step_index() const { return step_; }
   double time_days() const { return static_cast<double>(step_) * model_.time_step_days; }
   const erg::v1::JobSpec& spec() const { return spec_; }
