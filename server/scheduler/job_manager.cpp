@@ -495,10 +495,16 @@ void JobManager::start_next_locked() {
   while (!queued.empty() && static_cast<int>(running_.size()) < cfg_.max_running) {
     std::map<std::string, int> per_tenant;
     for (const auto& [id, r] : running_) ++per_tenant[r.job.tenant()];
-    // Oldest job of the tenant with the fewest running jobs.
+    // The tenant with the fewest running jobs; among those, the one whose
+    // last start is oldest (round robin); its oldest job (FIFO).
+    auto rank = [&](const Job& j) {
+      auto it = last_start_.find(j.tenant());
+      return std::pair(per_tenant[j.tenant()], it == last_start_.end() ? 0u : it->second);
+    };
     size_t best = 0;
     for (size_t i = 1; i < queued.size(); ++i)
-      if (per_tenant[queued[i].tenant()] < per_tenant[queued[best].tenant()]) best = i;
+      if (rank(queued[i]) < rank(queued[best])) best = i;
+    last_start_[queued[best].tenant()] = ++start_counter_;
     Job job = queued[best];
     queued.erase(queued.begin() + static_cast<long>(best));
     launch_locked(std::move(job));

@@ -4,8 +4,9 @@
 // jobs whose workers died meanwhile from their checkpoints.
 //
 // Queue: FIFO within a tenant; across tenants, the next job comes from the
-// tenant with the fewest running jobs (ties: the oldest waiting job), so one
-// tenant's hundred jobs do not starve another tenant's one.
+// tenant with the fewest running jobs, ties broken round robin (the tenant
+// that started a job least recently), so one tenant's hundred jobs do not
+// starve another tenant's one.
 //
 // Per job on disk, under DATA/jobs/ID/:
 //   job.json    the spec as submitted (defaults filled)
@@ -113,6 +114,8 @@ class JobManager {
   bool dirty_ = true;  // the queue or the running set changed: try to start jobs
   std::thread scheduler_;
   std::uint64_t steer_seq_ = 0;
+  std::map<std::string, std::uint64_t> last_start_;  // tenant -> start_counter_ at its last start
+  std::uint64_t start_counter_ = 0;
 };
 
 }  // namespace erg::server
