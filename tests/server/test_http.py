@@ -1,0 +1,102 @@
+"""ergd's HTTP side: every route needs a token, /api/jobs is the tenant's,
+/metrics is Prometheus text, and the dashboard, loaded in headless Chromium
+(Debian's), shows the job's row and its preview image."""
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+import unittest
+import urllib.error
+import urllib.request
+
+from ergd_fixture import ALICE, BOB, ErgdTest, S, md, spec_json
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+
+
+def get(url, token=None):
+    req = urllib.request.Request(url)
+    if token:
+        req.add_header("Authorization", "Bearer " + token)
+    try:
+        with urllib.request.urlopen(req, timeout=10) as r:
+            return r.status, r.read(), r.headers
+    except urllib.error.HTTPError as e:
+        return e.code, e.read(), e.headers
+
+
+class Http(ErgdTest):
+    @classmethod
+    def setUpClass(cls):
+        super().setUpClass()
+        cls.job = cls.ergd.submit(spec_json(name="dune-field", steps=30, snapshot_every=10))
+        cls.ergd.wait(cls.job.id)
+        cls.other = cls.ergd.submit(spec_json(name="bobs", steps=2), token=BOB)
+        cls.ergd.wait(cls.other.id, BOB)
+        # Some RPC traffic for the latency histogram.
+        cls.ergd.fetch_bytes(cls.job.id)
+
+    def test_every_route_needs_a_token(self):
+        for path in ("/", "/api/jobs", "/api/jobs/%s" % self.job.id,
+                     "/api/jobs/%s/preview.png" % self.job.id, "/metrics"):
+            status, _, headers = get(self.ergd.http + path)
+            self.assertEqual(status, 401, path)
+            self.assertIn("Bearer", headers.get("WWW-Authenticate", ""))
+            self.assertEqual(get(self.ergd.http + path, "wrong-token-0123456789")[0], 401)
+        self.assertEqual(get(self.ergd.http + "/login?token=wrong-token-0123456789")[0], 401)
+
+    def test_api_jobs_lists_only_the_tenants_jobs(self):
+        status, body, headers = get(self.ergd.http + "/api/jobs", ALICE)
+        self.assertEqual(status, 200)
+        self.assertIn("application/json", headers["Content-Type"])
+        jobs = json.loads(body)
+        ids = [j["id"] for j in jobs]
+        self.assertIn(self.job.id, ids)
+        self.assertNotIn(self.other.id, ids)
+        mine = [j for j in jobs if j["id"] == self.job.id][0]
+        self.assertEqual(mine["state"], "SUCCEEDED")
+        self.assertEqual(int(mine["progress"]["step"]), 30)
+        self.assertEqual(get(self.ergd.http + "/api/jobs/%s" % self.other.id, ALICE)[0], 404)
+        status, png, _ = get(self.ergd.http + "/api/jobs/%s/preview.png" % self.job.id, ALICE)
+        self.assertEqual(status, 200)
+        self.assertEqual(png[:8], b"\x89PNG\r\n\x1a\n")
+
+    def test_metrics_are_prometheus_text(self):
+        status, body, headers = get(self.ergd.http + "/metrics", ALICE)
+        self.assertEqual(status, 200)
+        text = body.decode()
+        self.assertIn('erg_jobs{state="SUCCEEDED"}', text)
+        self.assertIn("erg_snapshot_bytes_streamed_total", text)
+        self.assertIn('erg_rpc_latency_seconds_bucket{method="GetJob"', text)
+        self.assertIn('erg_rpc_latency_seconds_count{method="StreamSnapshot"}', text)
+        streamed = [float(line.split()[-1]) for line in text.splitlines()
+                    if line.startswith("erg_snapshot_bytes_streamed_total")]
+        self.assertGreater(streamed[0], 0)
+
+    @unittest.skipUnless(os.path.exists(CHROMIUM), "chromium is not installed")
+    def test_dashboard_in_headless_chromium_shows_the_job_and_its_preview(self):
+        profile = tempfile.mkdtemp(prefix="chromium-", dir=self.tmpdir)
+        # /login sets the session cookie and redirects to the dashboard;
+        # --dump-dom prints the DOM once the page (and its images) loaded.
+        out = subprocess.run(
+            [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+             "--no-first-run", "--disable-background-networking", "--disable-component-update",
+             "--disable-sync", "--user-data-dir=" + profile, "--virtual-time-budget=5000",
+             "--dump-dom", self.ergd.http + "/login?token=" + ALICE],
+            capture_output=True, text=True, timeout=120)
+        dom = out.stdout
+        self.assertIn('data-job="%s"' % self.job.id, dom, out.stderr[-2000:])
+        self.assertIn("dune-field", dom)
+        self.assertIn("SUCCEEDED", dom)
+        self.assertNotIn(self.other.id, dom)
+        # The preview <img> fired its load event: the PNG was fetched with the
+        # cookie and decoded by the browser.
+        img = [line for line in dom.splitlines() if "<img" in line and self.job.id in line]
+        self.assertTrue(img, dom[-2000:])
+        self.assertIn('data-loaded="1"', img[0])
+        self.assertIn('http-equiv="refresh"', dom)
+
+
+if __name__ == "__main__":
+    unittest.main()
