@@ -26,7 +26,7 @@ packages=(
   # test helpers that read our outputs with tools erg did not write
   python3 python3-h5py python3-numpy
   # the Python gRPC client of the service tests, and the dashboard test
-  python3-grpcio python3-protobuf chromium
+  python3-grpcio python3-protobuf chromium openssl
 )
 
 missing=()
