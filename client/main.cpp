@@ -1,309 +1,149 @@
 // erg: the command line for users.
-//   erg run JOB.json --out DIR [--steps N] [--snapshot-every K] [--threads T] [--backend B]
-//           [--ranks P] [--tiles PXxPY]      P MPI ranks (mpirun), one tile each
+// On this machine (local_run.cpp):
+//   erg run JOB.json --out DIR [--steps N] [--snapshot-every K] [--checkpoint-every C]
+//           [--threads T] [--backend B] [--ranks P] [--tiles PXxPY]
 //   erg run --resume DIR [--steps N]
 //   erg check JOB.json      validate a job and print it with every default filled in
 //   erg params              every model parameter: default, range, unit, source
-// `erg run` starts erg-worker (next to this program, or $ERG_WORKER; under
-// mpirun, or $ERG_MPIRUN, with --ranks) and draws a progress bar from the
-// JSON-lines events rank 0 writes to its stdout.
-#include <fcntl.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <cmath>
-#include <csignal>
-#include <cstdio>
-#include <cstring>
-#include <filesystem>
+// On ergd, the job service (remote/*.cpp; proto/erg/v1/service.proto):
+//   erg submit JOB.json [--watch] [--key K] [--steps N] [--snapshot-every K]
+//              [--checkpoint-every C] [--ranks P] [--threads T]   prints the job id
+//   erg jobs [--state S] [--all-pages]      the tenant's jobs, newest first
+//   erg status ID [--json]                  one job's record
+//   erg watch ID                            progress until the job ends
+//   erg cancel ID
+//   erg steer ID EVENTS.json                timeline events applied to a running job
+//   erg fetch ID [--step S | --all] --out DIR    snapshots, resumable, sha256-checked
+//   erg preview ID [--step S] --out FILE.png
+// Every remote command takes --server HOST:PORT, --token T and --ca FILE
+// anywhere in its arguments; else ERG_SERVER, ERG_TOKEN, ERG_CA; else the
+// config file $ERG_CONFIG or ~/.config/erg/config (remote/config.h).
+// Exit codes: 0 ok; 1 error (watch: the job FAILED); 2 usage, invalid job or
+// INVALID_ARGUMENT; 3 watch: the job was CANCELLED; 4 UNAUTHENTICATED or
+// PERMISSION_DENIED; 5 NOT_FOUND.
 #include <iostream>
 #include <map>
+#include <memory>
 #include <string>
-#include <thread>
 #include <vector>
 
-#include "job/run_flags.h"
+#include "commands.h"
 #include "job/spec.h"
+#include "remote/config.h"
+#include "remote/connection.h"
+
+namespace erg::client {
 
 namespace {
 
-namespace fs = std::filesystem;
-
-// Minimal reader of the flat JSON objects erg-worker emits.
-std::map<std::string, std::string> parse_flat_json(const std::string& line) {
-  std::map<std::string, std::string> out;
-  size_t i = 0;
-  auto skip = [&] {
-    while (i < line.size() &&
-           (line[i] == ' ' || line[i] == ',' || line[i] == '{' || line[i] == '}'))
-      ++i;
-  };
-  while (i < line.size()) {
-    skip();
-    if (i >= line.size() || line[i] != '"') break;
-    size_t k = line.find('"', i + 1);
-    if (k == std::string::npos) break;
-    std::string key = line.substr(i + 1, k - i - 1);
-    i = k + 1;
-    if (i < line.size() && line[i] == ':') ++i;
-    std::string value;
-    if (i < line.size() && line[i] == '"') {
-      ++i;
-      while (i < line.size() && line[i] != '"') {
-        if (line[i] == '\\' && i + 1 < line.size()) ++i;
-        value += line[i++];
-      }
-      ++i;
-    } else if (i < line.size() && line[i] == '{') {
-      int depth = 0;
-      size_t start = i;
-      do {
-        if (line[i] == '{') ++depth;
-        if (line[i] == '}') --depth;
-        ++i;
-      } while (i < line.size() && depth > 0);
-      value = line.substr(start, i - start);
-    } else {
-      while (i < line.size() && line[i] != ',' && line[i] != '}') value += line[i++];
-    }
-    out[key] = value;
-  }
-  return out;
-}
-
-std::string fmt_duration(double s) {
-  if (!(s >= 0) || s > 1e8) return "--:--";
-  const long t = static_cast<long>(s + 0.5);
-  char buf[32];
-  if (t >= 3600)
-    std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", t / 3600, (t / 60) % 60, t % 60);
-  else
-    std::snprintf(buf, sizeof buf, "%ld:%02ld", t / 60, t % 60);
-  return buf;
-}
-
-class ProgressBar {
- public:
-  ProgressBar() : tty_(::isatty(STDERR_FILENO) == 1) {}
-  void update(long long step, long long steps, double rate, double eta) {
-    const double frac = steps > 0 ? static_cast<double>(step) / static_cast<double>(steps) : 1.0;
-    if (!tty_) {
-      // Logs and CI: a line per 10%.
-      const int decile = static_cast<int>(std::floor(frac * 10 + 1e-9));
-      if (decile <= last_decile_) return;
-      last_decile_ = decile;
-    }
-    constexpr int kWidth = 30;
-    const int filled = static_cast<int>(frac * kWidth);
-    std::string bar(static_cast<size_t>(filled), '#');
-    bar.resize(kWidth, '.');
-    char line[256];
-    std::snprintf(line, sizeof line,
-                  "step %lld/%lld [%s] %3d%%  %.2f steps/s  ETA %s  snapshots %d", step, steps,
-                  bar.c_str(), static_cast<int>(frac * 100), rate, fmt_duration(eta).c_str(),
-                  snapshots_);
-    std::cerr << (tty_ ? "\r" : "") << line << (tty_ ? "\033[K" : "\n") << std::flush;
-    drawn_ = true;
-  }
-  void snapshot() { ++snapshots_; }
-  void finish() {
-    if (tty_ && drawn_) std::cerr << "\n";
-    drawn_ = false;
-  }
-  // Keeps the worker's own stderr lines from landing inside the bar.
-  bool tty() const { return tty_; }
-
- private:
-  bool tty_;
-  bool drawn_ = false;
-  int last_decile_ = -1;
-  int snapshots_ = 0;
+struct CommandUsage {
+  const char* name;
+  const char* text;  // lines, each ending in a newline
 };
 
-std::string worker_path() {
-  if (const char* env = std::getenv("ERG_WORKER")) return env;
-  std::error_code ec;
-  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    const fs::path w = self.parent_path() / "erg-worker";
-    if (fs::exists(w)) return w.string();
+// The one usage table: `erg help` prints it all, a command's mistakes print
+// its own entry.
+const CommandUsage kUsage[] = {
+    {"run",
+     "  erg run JOB.json --out DIR [--steps N] [--snapshot-every K] [--checkpoint-every C]\n"
+     "                   [--threads T] [--backend auto|cpu|cuda] [--ranks P [--tiles PXxPY]]\n"
+     "  erg run --resume DIR [--steps N] [...]\n"},
+    {"check", "  erg check JOB.json   validate a job; print it with all defaults\n"},
+    {"params", "  erg params           list every model parameter with its default and source\n"},
+    {"submit",
+     "  erg submit JOB.json [--watch] [--key IDEMPOTENCY_KEY] [--steps N] [--snapshot-every K]\n"
+     "             [--checkpoint-every C] [--ranks P] [--threads T]\n"
+     "                       queue the job on ergd; prints its id on stdout\n"},
+    {"jobs", "  erg jobs [--state queued|running|succeeded|failed|cancelled] [--all-pages]\n"},
+    {"status", "  erg status ID [--json]\n"},
+    {"watch",
+     "  erg watch ID         progress until the job ends (exit 0, 1 FAILED, 3 CANCELLED)\n"},
+    {"cancel", "  erg cancel ID\n"},
+    {"steer", "  erg steer ID EVENTS.json   apply an erg.v1.Event (or a JSON array) now\n"},
+    {"fetch", "  erg fetch ID [--step S | --all] --out DIR   snapshots (latest by default)\n"},
+    {"preview", "  erg preview ID [--step S] --out FILE.png\n"},
+};
+
+void usage(std::ostream& out) {
+  out << "erg " << ERG_VERSION << ": desert landscape simulation\n"
+      << "on this machine:\n";
+  for (const auto& u : kUsage) {
+    if (std::string(u.name) == "submit")
+      out << "on ergd, the job service (any of these also takes --server HOST:PORT --token T "
+             "--ca FILE):\n";
+    out << u.text;
   }
-  return "erg-worker";
+  out << "ergd is found from --server/--token/--ca, else ERG_SERVER/ERG_TOKEN/ERG_CA, else\n"
+         "the config file $ERG_CONFIG or ~/.config/erg/config (lines `server = HOST:PORT`,\n"
+         "`token = T`, `ca = FILE`); by default 127.0.0.1:7117 without TLS.\n"
+         "exit codes: 0 ok; 1 error, or the watched job FAILED; 2 usage, invalid job or\n"
+         "INVALID_ARGUMENT; 3 the watched job was CANCELLED; 4 UNAUTHENTICATED or\n"
+         "PERMISSION_DENIED; 5 NOT_FOUND\n";
 }
 
-pid_t g_child = -1;
-extern "C" void forward_signal(int sig) {
-  if (g_child > 0) ::kill(g_child, sig);
+using RemoteCommand = int (*)(Remote&, const std::vector<std::string>&);
+
+const std::map<std::string, RemoteCommand>& remote_commands() {
+  static const std::map<std::string, RemoteCommand> m = {
+      {"submit", cmd_submit}, {"jobs", cmd_jobs},      {"status", cmd_status},
+      {"watch", cmd_watch},   {"cancel", cmd_cancel},  {"steer", cmd_steer},
+      {"fetch", cmd_fetch},   {"preview", cmd_preview}};
+  return m;
 }
 
-int cmd_run(const std::vector<std::string>& args) {
-  erg::job::RunFlags flags;
+int run_remote(const std::string& cmd, RemoteCommand fn, std::vector<std::string> args) {
+  ConnectionSettings settings;
   try {
-    flags = erg::job::parse_run_flags(args);
-    if (flags.resume_dir.empty())
-      (void)erg::job::load_job_file(flags.job_path);  // fail fast, one place
-  } catch (const erg::job::SpecError& e) {
-    std::cerr << "erg: invalid job:\n" << e.what() << "\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "erg run: " << e.what() << "\n";
+    const ConnectionFlags flags = extract_connection_flags(args);
+    settings = resolve_connection(flags, process_env());
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "erg: " << cmd << ": " << e.what() << "\n";
     return 2;
   }
-  int fds[2];
-  if (::pipe(fds) != 0) {
-    std::perror("erg: pipe");
+  for (const auto& w : settings.warnings) std::cerr << "erg: warning: " << w << "\n";
+  try {
+    Remote remote(settings);
+    return fn(remote, args);
+  } catch (const std::exception& e) {
+    std::cerr << "erg: " << cmd << ": " << e.what() << "\n";
     return 1;
   }
-  // The worker (rank 0, with --ranks) writes its progress events to stdout,
-  // which mpirun forwards: erg reads them from a pipe.
-  const std::string worker = worker_path();
-  std::vector<std::string> wargs;
-  if (flags.ranks > 0) {
-    const char* mpirun = std::getenv("ERG_MPIRUN");
-    wargs = {mpirun ? mpirun : "mpirun", "-n", std::to_string(flags.ranks), "--bind-to", "none"};
-    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-    if (static_cast<unsigned>(flags.ranks) > cores) wargs.push_back("--oversubscribe");
-  }
-  wargs.push_back(worker);
-  for (size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "--ranks") {  // erg's own flag
-      ++i;
-      continue;
-    }
-    wargs.push_back(args[i]);
-  }
-  if (flags.ranks > 0 && flags.threads == 0) {
-    // Share the cores between the ranks instead of oversubscribing them.
-    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-    wargs.push_back("--threads");
-    wargs.push_back(std::to_string(std::max(1u, cores / static_cast<unsigned>(flags.ranks))));
-  }
-  wargs.push_back("--progress-fd");
-  wargs.push_back("1");
-  const pid_t pid = ::fork();
-  if (pid < 0) {
-    std::perror("erg: fork");
-    return 1;
-  }
-  if (pid == 0) {
-    ::close(fds[0]);
-    ::dup2(fds[1], STDOUT_FILENO);
-    ::close(fds[1]);
-    if (::geteuid() == 0) {
-      // Open MPI refuses to run as root unless told it is intended.
-      ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
-      ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
-    }
-    std::vector<char*> argv;
-    for (auto& a : wargs) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    ::execvp(argv[0], argv.data());
-    std::fprintf(stderr, "erg: cannot start %s: %s\n", argv[0], std::strerror(errno));
-    _exit(127);
-  }
-  g_child = pid;
-  std::signal(SIGINT, forward_signal);
-  std::signal(SIGTERM, forward_signal);
-  ::close(fds[1]);
-  ProgressBar bar;
-  std::string pending;
-  char buf[4096];
-  std::string out_dir = flags.out_dir;
-  for (;;) {
-    const ssize_t n = ::read(fds[0], buf, sizeof buf);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) break;
-    pending.append(buf, static_cast<size_t>(n));
-    size_t nl;
-    while ((nl = pending.find('\n')) != std::string::npos) {
-      const auto ev = parse_flat_json(pending.substr(0, nl));
-      pending.erase(0, nl + 1);
-      const std::string& kind = ev.count("event") ? ev.at("event") : "";
-      auto num = [&](const char* k) { return ev.count(k) ? std::atof(ev.at(k).c_str()) : 0.0; };
-      if (kind == "progress") {
-        bar.update(static_cast<long long>(num("step")), static_cast<long long>(num("steps")),
-                   num("steps_per_s"), num("eta_s"));
-      } else if (kind == "snapshot") {
-        bar.snapshot();
-      } else if (kind == "start") {
-        std::cerr << "erg: " << ev.at("nx") << " x " << ev.at("ny") << " cells on the "
-                  << ev.at("backend") << " backend, " << ev.at("ranks") << " rank(s) as "
-                  << ev.at("tiles") << " tiles, steps " << ev.at("step") << " -> " << ev.at("steps")
-                  << ", output in " << out_dir << "\n";
-      } else if (kind == "done") {
-        bar.finish();
-        if (ev.count("halo_messages_per_step") && num("halo_messages_per_step") > 0)
-          std::cerr << "erg: halo exchange: " << ev.at("halo_messages_per_step") << " messages, "
-                    << ev.at("halo_bytes_per_step") << " bytes per step (the most of any rank)\n";
-        if (ev.count("peak_rss_bytes_per_cell")) {
-          char line[160];
-          std::snprintf(line, sizeof line,
-                        "erg: memory: %.0f bytes per cell (peak resident, all ranks: %.2f GiB)\n",
-                        num("peak_rss_bytes_per_cell"), num("peak_rss_bytes") / 1073741824.0);
-          std::cerr << line;
-        }
-        std::cerr << "erg: done at step " << ev.at("step") << "; exact sand total "
-                  << ev.at("sand_units_total") << " units on the ground + "
-                  << ev.at("airborne_units_total") << " airborne\n";
-      } else if (kind == "failed" || kind == "stopped") {
-        bar.finish();
-      }
-    }
-  }
-  ::close(fds[0]);
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  bar.finish();
-  if (WIFEXITED(status)) {
-    const int code = WEXITSTATUS(status);
-    if (code == 0)
-      std::cerr << "erg: snapshots in " << out_dir << "/snapshots, previews in " << out_dir
-                << "/previews\n";
-    return code;
-  }
-  if (WIFSIGNALED(status)) {
-    std::cerr << "erg: worker killed by signal " << WTERMSIG(status) << "\n";
-    return 128 + WTERMSIG(status);
-  }
-  return 1;
-}
-
-int cmd_check(const std::vector<std::string>& args) {
-  if (args.size() != 1) {
-    std::cerr << "usage: erg check JOB.json\n";
-    return 2;
-  }
-  try {
-    std::cout << erg::job::to_json(erg::job::load_job_file(args[0])) << "\n";
-    return 0;
-  } catch (const std::exception& e) {
-    std::cerr << "erg: invalid job:\n" << e.what() << "\n";
-    return 2;
-  }
-}
-
-void usage() {
-  std::cerr
-      << "erg " << ERG_VERSION << ": desert landscape simulation\n"
-      << "  erg run JOB.json --out DIR [--steps N] [--snapshot-every K] [--checkpoint-every C]\n"
-      << "                   [--threads T] [--backend auto|cpu|cuda]\n"
-      << "  erg run --resume DIR [--steps N] [...]\n"
-      << "  erg check JOB.json   validate a job; print it with all defaults\n"
-      << "  erg params           list every model parameter with its default and source\n";
 }
 
 }  // namespace
 
+std::string usage_of(const std::string& command) {
+  for (const auto& u : kUsage)
+    if (command == u.name) return std::string("usage:\n") + u.text;
+  return "";
+}
+
+}  // namespace erg::client
+
 int main(int argc, char** argv) {
+  using namespace erg::client;
   if (argc < 2) {
-    usage();
+    usage(std::cerr);
     return 2;
   }
-  const std::string cmd = argv[1];
-  const std::vector<std::string> rest(argv + 2, argv + argc);
-  if (cmd == "run") return cmd_run(rest);
-  if (cmd == "check") return cmd_check(rest);
+  // The command is the first argument that is not a connection flag, so
+  // `erg --server H:P jobs` works too.
+  std::vector<std::string> args(argv + 1, argv + argc);
+  size_t at = 0;
+  while (at + 1 < args.size() &&
+         (args[at] == "--server" || args[at] == "--token" || args[at] == "--ca"))
+    at += 2;
+  const std::string cmd = at < args.size() ? args[at] : "";
+  if (at < args.size()) args.erase(args.begin() + static_cast<std::ptrdiff_t>(at));
+  if (const auto it = remote_commands().find(cmd); it != remote_commands().end())
+    return run_remote(cmd, it->second, std::move(args));
+  if (at > 0) {
+    std::cerr << "erg: " << args[0] << " is for the remote commands\n";
+    usage(std::cerr);
+    return 2;
+  }
+  if (cmd == "run") return cmd_run(args);
+  if (cmd == "check") return cmd_check(args);
   if (cmd == "params") {
     std::cout << erg::job::parameter_table_markdown();
     return 0;
@@ -313,10 +153,10 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (cmd == "help" || cmd == "--help" || cmd == "-h") {
-    usage();
+    usage(std::cout);
     return 0;
   }
   std::cerr << "erg: unknown command '" << cmd << "'\n";
-  usage();
+  usage(std::cerr);
   return 2;
 }

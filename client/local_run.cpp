@@ -1,0 +1,238 @@
+// Local runs: `erg run` starts erg-worker on this machine (under mpirun, or
+// $ERG_MPIRUN, with --ranks) and draws a progress bar from the JSON-lines
+// events rank 0 writes to its stdout; `erg check` validates a job.
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "commands.h"
+#include "job/run_flags.h"
+#include "job/spec.h"
+#include "progress_bar.h"
+
+namespace erg::client {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// Minimal reader of the flat JSON objects erg-worker emits.
+std::map<std::string, std::string> parse_flat_json(const std::string& line) {
+  std::map<std::string, std::string> out;
+  size_t i = 0;
+  auto skip = [&] {
+    while (i < line.size() &&
+           (line[i] == ' ' || line[i] == ',' || line[i] == '{' || line[i] == '}'))
+      ++i;
+  };
+  while (i < line.size()) {
+    skip();
+    if (i >= line.size() || line[i] != '"') break;
+    size_t k = line.find('"', i + 1);
+    if (k == std::string::npos) break;
+    std::string key = line.substr(i + 1, k - i - 1);
+    i = k + 1;
+    if (i < line.size() && line[i] == ':') ++i;
+    std::string value;
+    if (i < line.size() && line[i] == '"') {
+      ++i;
+      while (i < line.size() && line[i] != '"') {
+        if (line[i] == '\\' && i + 1 < line.size()) ++i;
+        value += line[i++];
+      }
+      ++i;
+    } else if (i < line.size() && line[i] == '{') {
+      int depth = 0;
+      size_t start = i;
+      do {
+        if (line[i] == '{') ++depth;
+        if (line[i] == '}') --depth;
+        ++i;
+      } while (i < line.size() && depth > 0);
+      value = line.substr(start, i - start);
+    } else {
+      while (i < line.size() && line[i] != ',' && line[i] != '}') value += line[i++];
+    }
+    out[key] = value;
+  }
+  return out;
+}
+
+std::string worker_path() {
+  if (const char* env = std::getenv("ERG_WORKER")) return env;
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path w = self.parent_path() / "erg-worker";
+    if (fs::exists(w)) return w.string();
+  }
+  return "erg-worker";
+}
+
+pid_t g_child = -1;
+extern "C" void forward_signal(int sig) {
+  if (g_child > 0) ::kill(g_child, sig);
+}
+
+}  // namespace
+
+int cmd_run(const std::vector<std::string>& args) {
+  erg::job::RunFlags flags;
+  try {
+    flags = erg::job::parse_run_flags(args);
+    if (flags.resume_dir.empty())
+      (void)erg::job::load_job_file(flags.job_path);  // fail fast, one place
+  } catch (const erg::job::SpecError& e) {
+    std::cerr << "erg: invalid job:\n" << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "erg run: " << e.what() << "\n";
+    return 2;
+  }
+  int fds[2];
+  if (::pipe(fds) != 0) {
+    std::perror("erg: pipe");
+    return 1;
+  }
+  // The worker (rank 0, with --ranks) writes its progress events to stdout,
+  // which mpirun forwards: erg reads them from a pipe.
+  const std::string worker = worker_path();
+  std::vector<std::string> wargs;
+  if (flags.ranks > 0) {
+    const char* mpirun = std::getenv("ERG_MPIRUN");
+    wargs = {mpirun ? mpirun : "mpirun", "-n", std::to_string(flags.ranks), "--bind-to", "none"};
+    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+    if (static_cast<unsigned>(flags.ranks) > cores) wargs.push_back("--oversubscribe");
+  }
+  wargs.push_back(worker);
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--ranks") {  // erg's own flag
+      ++i;
+      continue;
+    }
+    wargs.push_back(args[i]);
+  }
+  if (flags.ranks > 0 && flags.threads == 0) {
+    // Share the cores between the ranks instead of oversubscribing them.
+    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+    wargs.push_back("--threads");
+    wargs.push_back(std::to_string(std::max(1u, cores / static_cast<unsigned>(flags.ranks))));
+  }
+  wargs.push_back("--progress-fd");
+  wargs.push_back("1");
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    std::perror("erg: fork");
+    return 1;
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    ::dup2(fds[1], STDOUT_FILENO);
+    ::close(fds[1]);
+    if (::geteuid() == 0) {
+      // Open MPI refuses to run as root unless told it is intended.
+      ::setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+      ::setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+    }
+    std::vector<char*> argv;
+    for (auto& a : wargs) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    ::execvp(argv[0], argv.data());
+    std::fprintf(stderr, "erg: cannot start %s: %s\n", argv[0], std::strerror(errno));
+    _exit(127);
+  }
+  g_child = pid;
+  std::signal(SIGINT, forward_signal);
+  std::signal(SIGTERM, forward_signal);
+  ::close(fds[1]);
+  ProgressBar bar;
+  std::string pending;
+  char buf[4096];
+  std::string out_dir = flags.out_dir;
+  for (;;) {
+    const ssize_t n = ::read(fds[0], buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    pending.append(buf, static_cast<size_t>(n));
+    size_t nl;
+    while ((nl = pending.find('\n')) != std::string::npos) {
+      const auto ev = parse_flat_json(pending.substr(0, nl));
+      pending.erase(0, nl + 1);
+      const std::string& kind = ev.count("event") ? ev.at("event") : "";
+      auto num = [&](const char* k) { return ev.count(k) ? std::atof(ev.at(k).c_str()) : 0.0; };
+      if (kind == "progress") {
+        bar.update(static_cast<long long>(num("step")), static_cast<long long>(num("steps")),
+                   num("steps_per_s"), num("eta_s"));
+      } else if (kind == "snapshot") {
+        bar.snapshot();
+      } else if (kind == "start") {
+        std::cerr << "erg: " << ev.at("nx") << " x " << ev.at("ny") << " cells on the "
+                  << ev.at("backend") << " backend, " << ev.at("ranks") << " rank(s) as "
+                  << ev.at("tiles") << " tiles, steps " << ev.at("step") << " -> " << ev.at("steps")
+                  << ", output in " << out_dir << "\n";
+      } else if (kind == "done") {
+        bar.finish();
+        if (ev.count("halo_messages_per_step") && num("halo_messages_per_step") > 0)
+          std::cerr << "erg: halo exchange: " << ev.at("halo_messages_per_step") << " messages, "
+                    << ev.at("halo_bytes_per_step") << " bytes per step (the most of any rank)\n";
+        if (ev.count("peak_rss_bytes_per_cell")) {
+          char line[160];
+          std::snprintf(line, sizeof line,
+                        "erg: memory: %.0f bytes per cell (peak resident, all ranks: %.2f GiB)\n",
+                        num("peak_rss_bytes_per_cell"), num("peak_rss_bytes") / 1073741824.0);
+          std::cerr << line;
+        }
+        std::cerr << "erg: done at step " << ev.at("step") << "; exact sand total "
+                  << ev.at("sand_units_total") << " units on the ground + "
+                  << ev.at("airborne_units_total") << " airborne\n";
+      } else if (kind == "failed" || kind == "stopped") {
+        bar.finish();
+      }
+    }
+  }
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  bar.finish();
+  if (WIFEXITED(status)) {
+    const int code = WEXITSTATUS(status);
+    if (code == 0)
+      std::cerr << "erg: snapshots in " << out_dir << "/snapshots, previews in " << out_dir
+                << "/previews\n";
+    return code;
+  }
+  if (WIFSIGNALED(status)) {
+    std::cerr << "erg: worker killed by signal " << WTERMSIG(status) << "\n";
+    return 128 + WTERMSIG(status);
+  }
+  return 1;
+}
+
+int cmd_check(const std::vector<std::string>& args) {
+  if (args.size() != 1) {
+    std::cerr << "usage: erg check JOB.json\n";
+    return 2;
+  }
+  try {
+    std::cout << erg::job::to_json(erg::job::load_job_file(args[0])) << "\n";
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "erg: invalid job:\n" << e.what() << "\n";
+    return 2;
+  }
+}
+
+}  // namespace erg::client

@@ -1,0 +1,33 @@
+// Helpers shared by the remote commands (remote/*.cpp).
+#pragma once
+
+#include <google/protobuf/message.h>
+
+#include <cstdint>
+#include <string>
+
+#include "erg/v1/service.pb.h"
+
+namespace erg::client {
+
+// Prints "erg: COMMAND: PROBLEM" and the command's usage; returns 2.
+int usage_error(const std::string& command, const std::string& problem);
+
+// "RUNNING", ...
+std::string state_name(erg::v1::JobState s);
+// SUCCEEDED, FAILED or CANCELLED.
+bool is_final(erg::v1::JobState s);
+// Parses "running", "RUNNING", ...; false when it names no state.
+bool parse_state(const std::string& text, erg::v1::JobState* out);
+
+// Local time "2024-05-01 12:03:04"; "-" for 0.
+std::string fmt_time_ms(std::int64_t unix_ms);
+
+// Protobuf JSON: proto field names (as in job files), enums by name.
+// `indent`: multi-line; `all_fields`: zero-valued fields too.
+std::string to_json(const google::protobuf::Message& m, bool indent, bool all_fields = false);
+
+// "step 120/2000 (6%), 3.21 steps/s, ETA 9:47"
+std::string progress_text(const erg::v1::Progress& p);
+
+}  // namespace erg::client
