@@ -166,6 +166,10 @@ int main(int argc, char** argv) {
     builder.AddListeningPort(listen, creds, &port);
     builder.SetMaxReceiveMessageSize(4 << 20);  // specs are bounded far below this
     builder.SetMaxSendMessageSize(4 << 20);
+    // Clients keep quiet streams (a watch on a queued job) alive with pings
+    // every 60 s; gRPC's default would answer those with GOAWAY.
+    builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 30000);
+    builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
     grpc::ResourceQuota quota("ergd");
     quota.SetMaxThreads(512);  // streams hold a thread each (watchers, downloads)
     builder.SetResourceQuota(quota);

@@ -450,6 +450,11 @@ void JobManager::on_line(const std::string& id, const std::string& line) {
   } else if (kind == "steer_rejected") {
     r.steer_rejected[str(ev, "file")] = str(ev, "reason");
     cv_.notify_all();
+  } else if (kind == "stopped") {
+    // Stopped on a signal after a checkpoint: where the job really is.
+    p.set_step(static_cast<std::int64_t>(num(ev, "step")));
+    p.set_steps_per_s(0);
+    store_.update(r.job);
   } else if (kind == "failed") {
     r.failure = str(ev, "reason");
   }
