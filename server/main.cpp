@@ -2,7 +2,10 @@
 //   ergd --listen ADDR --http ADDR --data DIR --tokens FILE
 //        [--max-running N] [--max-ranks P] [--tls-cert F --tls-key F]
 //        [--cancel-grace S] [--max-job-disk BYTES] [--tenant-cell-steps N]
-//        [--worker PATH] [--mpirun PATH]
+//        [--worker PATH] [--mpirun PATH] [--max-attempts N]
+//        [--launcher local|slurm] [--slurm-template FILE] [--slurm-partition P]
+//        [--slurm-account A] [--slurm-time-limit MINUTES] [--slurm-gpus-per-node G]
+//        [--slurm-signal SECONDS]
 // SIGTERM/SIGINT: stop accepting calls, ask running workers to checkpoint,
 // wait for them, exit; the jobs stay RUNNING in the store and the next ergd
 // resumes them. SIGKILL loses nothing either (server/scheduler/job_manager.h).
@@ -23,6 +26,7 @@
 #include "auth/tokens.h"
 #include "http/http_api.h"
 #include "launch/local_launcher.h"
+#include "launch/slurm_launcher.h"
 #include "metrics/metrics.h"
 #include "scheduler/job_manager.h"
 #include "store/job_store.h"
@@ -32,11 +36,18 @@ namespace fs = std::filesystem;
 namespace {
 
 void usage() {
-  std::cerr << "usage: ergd --listen HOST:PORT --http HOST:PORT --data DIR --tokens FILE\n"
-               "            [--max-running N (2)] [--max-ranks P (cores)]\n"
-               "            [--tls-cert FILE --tls-key FILE] [--cancel-grace SECONDS (30)]\n"
-               "            [--max-job-disk BYTES (0: none)] [--tenant-cell-steps N (0: none)]\n"
-               "            [--worker PATH (erg-worker next to ergd)] [--mpirun PATH (mpirun)]\n";
+  std::cerr
+      << "usage: ergd --listen HOST:PORT --http HOST:PORT --data DIR --tokens FILE\n"
+         "            [--max-running N (2)] [--max-ranks P (cores)]\n"
+         "            [--tls-cert FILE --tls-key FILE] [--cancel-grace SECONDS (30)]\n"
+         "            [--max-job-disk BYTES (0: none)] [--tenant-cell-steps N (0: none)]\n"
+         "            [--worker PATH (erg-worker next to ergd)] [--mpirun PATH (mpirun)]\n"
+         "            [--max-attempts N (10): restarts of a job stopped by a signal]\n"
+         "            [--launcher local|slurm (local)]\n"
+         "  Slurm:     [--slurm-template FILE (deploy/slurm/ergd-job.sbatch)]\n"
+         "            [--slurm-partition P] [--slurm-account A] [--slurm-time-limit MINUTES (60)]\n"
+         "            [--slurm-gpus-per-node G (0)] [--slurm-signal SECONDS (120): SIGTERM\n"
+         "             this long before the walltime; the job checkpoints and resumes]\n";
 }
 
 std::string read_file(const std::string& path) {
@@ -64,6 +75,9 @@ std::pair<std::string, int> split_host_port(const std::string& flag, const std::
 int main(int argc, char** argv) {
   std::string listen, http, data, tokens_path, cert, key, worker, mpirun = "mpirun";
   erg::server::ManagerConfig cfg;
+  erg::server::SlurmConfig slurm;
+  slurm.template_path = ERG_SLURM_TEMPLATE;
+  std::string launcher_kind = "local";
   try {
     for (int i = 1; i < argc; ++i) {
       const std::string a = argv[i];
@@ -120,6 +134,16 @@ int main(int argc, char** argv) {
       throw std::invalid_argument("--listen, --data and --tokens are required");
     if (cert.empty() != key.empty())
       throw std::invalid_argument("--tls-cert and --tls-key go together");
+    for (const std::string* name : {&slurm.partition, &slurm.account})
+      if (name->find_first_not_of(
+              "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_.-") !=
+          std::string::npos)
+        throw std::invalid_argument("--slurm-partition/--slurm-account: '" + *name +
+                                    "' is not a Slurm name (A-Z a-z 0-9 _ . -)");
+    if (slurm.signal_s >= slurm.time_limit_minutes * 60)
+      throw std::invalid_argument("--slurm-signal: " + std::to_string(slurm.signal_s) +
+                                  " s must be shorter than --slurm-time-limit (" +
+                                  std::to_string(slurm.time_limit_minutes) + " min)");
   } catch (const std::exception& e) {
     std::cerr << "ergd: " << e.what() << "\n";
     usage();
@@ -144,12 +168,20 @@ int main(int argc, char** argv) {
 
   try {
     fs::create_directories(data);
+    data = fs::absolute(data).string();  // workers and batch scripts run elsewhere
     erg::server::Tokens tokens(tokens_path);
     erg::server::JobStore store((fs::path(data) / "ergd.sqlite").string());
     erg::server::Metrics metrics;
-    erg::server::LocalLauncher launcher(worker, mpirun);
+    std::unique_ptr<erg::server::Launcher> launcher;
+    if (launcher_kind == "slurm") {
+      slurm.worker = fs::absolute(worker).string();
+      slurm.mpirun = mpirun;
+      launcher = std::make_unique<erg::server::SlurmLauncher>(slurm);
+    } else {
+      launcher = std::make_unique<erg::server::LocalLauncher>(worker, mpirun);
+    }
     cfg.data_dir = data;
-    erg::server::JobManager manager(store, launcher, metrics, cfg);
+    erg::server::JobManager manager(store, *launcher, metrics, cfg);
     manager.start();
 
     erg::server::JobService service(manager, tokens, metrics);
@@ -187,7 +219,7 @@ int main(int argc, char** argv) {
     }
     std::cerr << "ergd: serving erg.v1.JobService on " << listen << (cert.empty() ? "" : " (TLS)")
               << (http.empty() ? "" : ", HTTP on " + http) << ", data in " << data << ", at most "
-              << cfg.max_running << " jobs at once, " << launcher.name() << " launcher (" << worker
+              << cfg.max_running << " jobs at once, " << launcher->name() << " launcher (" << worker
               << ")" << std::endl;
 
     int sig = 0;

@@ -172,7 +172,7 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
     std::ostringstream o;
     o << kPage << "<h1>erg jobs of " << html_escape(*tenant) << "</h1>\n<table id=\"jobs\">\n"
       << "<tr><th>job</th><th>name</th><th>state</th><th>progress</th><th>steps/s</th>"
-         "<th>preview</th></tr>\n";
+         "<th>runs on</th><th>preview</th></tr>\n";
     std::int64_t last = 0;
     const auto jobs = mgr_.list(*tenant, 0, 0, 200, &last);
     for (const auto& j : jobs) {
@@ -188,7 +188,8 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
         << " / " << p.total_steps() << "</td><td>";
       char rate[32];
       std::snprintf(rate, sizeof rate, "%.2f", p.steps_per_s());
-      o << rate << "</td><td>";
+      o << rate << "</td><td class=\"launcher\">" << html_escape(j.launcher()) << " "
+        << html_escape(j.launcher_id()) << " " << html_escape(j.launcher_state()) << "</td><td>";
       if (p.latest_snapshot_step() >= 0)
         o << "<img alt=\"preview of step " << p.latest_snapshot_step() << "\" src=\"/api/jobs/"
           << html_escape(j.id()) << "/preview.png?step=" << p.latest_snapshot_step()

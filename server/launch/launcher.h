@@ -2,6 +2,7 @@
 // mpirun or erg-worker directly) is the default; issue 5 adds Slurm.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <string>
 
@@ -16,13 +17,20 @@ struct LaunchRequest {
   bool resume = false;    // --resume out_dir (a checkpoint exists)
   int ranks = 1;
   int threads = 0;  // per rank; 0: the launcher decides
+  int attempt = 1;  // 1 for the first start, 2 after one resume, ...
+  // Slurm only (validated by ergd; empty or 0: the launcher's defaults).
+  std::string partition, account;
+  int nodes = 0, gpus_per_node = 0, time_limit_minutes = 0;
 };
 
 struct LaunchCallbacks {
-  // One progress-event line of the worker (worker/job/progress_line.h).
-  std::function<void(const std::string& line)> on_line;
+  // One progress-event line of the worker (worker/job/progress_line.h), and
+  // where the next line starts in the worker's progress file (0: a pipe).
+  std::function<void(const std::string& line, std::int64_t offset)> on_line;
   // The worker ended: its exit code (128 + signal when killed).
   std::function<void(int exit_code)> on_exit;
+  // The scheduler's state of the job changed (Slurm: PENDING, RUNNING, ...).
+  std::function<void(const std::string& state)> on_state;
 };
 
 class Launcher {
@@ -36,6 +44,15 @@ class Launcher {
   // Whether a worker started by an earlier ergd still runs (recovery).
   virtual bool alive(const std::string& launcher_id) = 0;
   virtual std::string name() const = 0;
+  // Whether workers outlive ergd (Slurm jobs do; local ones die with it),
+  // and attaching to one after a restart, reading its progress from offset.
+  virtual bool reattachable() const { return false; }
+  virtual void attach(const std::string& launcher_id, const LaunchRequest& req, std::int64_t offset,
+                      LaunchCallbacks cb) {
+    (void)launcher_id, (void)req, (void)offset, (void)cb;
+  }
+  // Stops following workers (ergd is exiting); no callback runs afterwards.
+  virtual void detach_all() {}
 };
 
 }  // namespace erg::server

@@ -184,6 +184,24 @@ Job JobManager::submit(const std::string& tenant, const erg::v1::SubmitJobReques
   if (res.threads_per_rank() < 0 || res.threads_per_rank() > 1024)
     problems.push_back("resources.threads_per_rank: " + std::to_string(res.threads_per_rank()) +
                        " is out of range [0, 1024]");
+  auto slurm_name = [&](const char* field, const std::string& v) {
+    const bool ok = v.size() <= 64 && v.find_first_not_of(
+                                          "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmn"
+                                          "opqrstuvwxyz0123456789_.-") == std::string::npos;
+    if (!ok)
+      problems.push_back(std::string("resources.") + field + ": '" + v.substr(0, 64) +
+                         "' is not a Slurm name (at most 64 of A-Z a-z 0-9 _ . -)");
+  };
+  slurm_name("partition", res.partition());
+  slurm_name("account", res.account());
+  auto in_range = [&](const char* field, long long v, long long hi) {
+    if (v < 0 || v > hi)
+      problems.push_back(std::string("resources.") + field + ": " + std::to_string(v) +
+                         " is out of range [0, " + std::to_string(hi) + "]");
+  };
+  in_range("nodes", res.nodes(), 4096);
+  in_range("gpus_per_node", res.gpus_per_node(), 64);
+  in_range("time_limit_minutes", res.time_limit_minutes(), cfg_.max_time_limit_minutes);
   if (!problems.empty()) {
     std::string msg;
     for (const auto& p : problems) msg += (msg.empty() ? "" : "\n") + p;
@@ -346,6 +364,31 @@ erg::v1::SteerJobResponse JobManager::steer(const std::string& tenant, const std
 
 // ---- running jobs -----------------------------------------------------------
 
+LaunchRequest JobManager::request_for(const Job& job) const {
+  const std::string dir = job_dir(job.id());
+  LaunchRequest req;
+  req.job_id = job.id();
+  req.job_file = dir + "/job.json";
+  req.out_dir = dir + "/run";
+  req.steer_dir = dir + "/steer";
+  req.log_path = dir + "/worker.log";
+  req.ranks = std::max(1, job.resources().ranks());
+  req.threads = job.resources().threads_per_rank();
+  req.attempt = std::max(1, job.attempts());
+  req.partition = job.resources().partition();
+  req.account = job.resources().account();
+  req.nodes = job.resources().nodes();
+  req.gpus_per_node = job.resources().gpus_per_node();
+  req.time_limit_minutes = job.resources().time_limit_minutes();
+  return req;
+}
+
+LaunchCallbacks JobManager::callbacks(const std::string& id) {
+  return {[this, id](const std::string& line, std::int64_t offset) { on_line(id, line, offset); },
+          [this, id](int code) { on_exit(id, code); },
+          [this, id](const std::string& state) { on_state(id, state); }};
+}
+
 void JobManager::launch_locked(Job job) {
   const std::string dir = job_dir(job.id());
   const fs::path run = fs::path(dir) / "run";
@@ -357,21 +400,12 @@ void JobManager::launch_locked(Job job) {
   if (!has_checkpoint) fs::remove_all(run, ec);  // a start that wrote no checkpoint: start over
   fs::create_directories(fs::path(dir) / "steer");
   job.set_attempts(job.attempts() + 1);
-  LaunchRequest req;
-  req.job_id = job.id();
-  req.job_file = dir + "/job.json";
-  req.out_dir = run.string();
-  req.steer_dir = dir + "/steer";
-  req.log_path = dir + "/worker.log";
+  LaunchRequest req = request_for(job);
   req.resume = has_checkpoint;
-  req.ranks = std::max(1, job.resources().ranks());
-  req.threads = job.resources().threads_per_rank();
   const std::string id = job.id();
   Running& r = running_[id];
   try {
-    r.launcher_id =
-        launcher_.start(req, {[this, id](const std::string& line) { on_line(id, line); },
-                              [this, id](int code) { on_exit(id, code); }});
+    r.launcher_id = launcher_.start(req, callbacks(id));
   } catch (const std::exception& e) {
     running_.erase(id);
     job.set_failure_reason(std::string("cannot start the worker: ") + e.what());
@@ -380,22 +414,50 @@ void JobManager::launch_locked(Job job) {
     return;
   }
   job.set_launcher_id(r.launcher_id);
+  job.set_launcher(launcher_.name());
+  job.set_launcher_offset(0);
+  job.set_launcher_state("");
   if (job.started_unix_ms() == 0) job.set_started_unix_ms(now_ms());
   r.job = job;
   r.last_saved = mono_s();
-  set_state_locked(r.job, erg::v1::RUNNING,
-                   has_checkpoint ? "resumed from the last checkpoint (attempt " +
-                                        std::to_string(job.attempts()) + ")"
-                                  : "");
+  // A batch scheduler may keep the job waiting: it is RUNNING once it runs.
+  const bool batch = launcher_.reattachable();
+  std::string note = has_checkpoint ? "resumed from the last checkpoint (attempt " +
+                                          std::to_string(job.attempts()) + ")"
+                                    : "";
+  if (batch)
+    note += (note.empty() ? "" : "; ") + std::string("submitted to ") + launcher_.name() +
+            " as job " + r.launcher_id;
+  set_state_locked(r.job, batch ? erg::v1::QUEUED : erg::v1::RUNNING, note);
 }
 
-void JobManager::on_line(const std::string& id, const std::string& line) {
+void JobManager::on_state(const std::string& id, const std::string& state) {
+  std::lock_guard lock(mu_);
+  auto it = running_.find(id);
+  if (it == running_.end()) return;
+  Job& job = it->second.job;
+  job.set_launcher_state(state);
+  const bool running = state == "RUNNING" || state == "COMPLETING" || state == "STAGE_OUT";
+  const bool waiting = state == "PENDING" || state == "REQUEUED" || state == "CONFIGURING" ||
+                       state == "REQUEUE_HOLD" || state == "REQUEUE_FED" || state == "SUSPENDED";
+  const auto want = running ? erg::v1::RUNNING : waiting ? erg::v1::QUEUED : job.state();
+  JobEvent m;
+  m.set_message(launcher_.name() + " job " + it->second.launcher_id + ": " + state);
+  event_locked(job, m);
+  if (want != job.state())
+    set_state_locked(job, want);
+  else
+    store_.update(job);
+}
+
+void JobManager::on_line(const std::string& id, const std::string& line, std::int64_t offset) {
   const auto ev = job::parse_progress_line(line);
   const std::string kind = str(ev, "event");
   std::lock_guard lock(mu_);
   auto it = running_.find(id);
   if (it == running_.end()) return;
   Running& r = it->second;
+  if (offset > 0) r.job.set_launcher_offset(offset);  // saved with the next update
   auto& p = *r.job.mutable_progress();
   const double now = mono_s();
   if (kind == "start") {
@@ -452,6 +514,7 @@ void JobManager::on_line(const std::string& id, const std::string& line) {
     cv_.notify_all();
   } else if (kind == "stopped") {
     // Stopped on a signal after a checkpoint: where the job really is.
+    r.stopped_by_signal = true;
     p.set_step(static_cast<std::int64_t>(num(ev, "step")));
     p.set_steps_per_s(0);
     store_.update(r.job);
@@ -484,6 +547,20 @@ void JobManager::on_exit(const std::string& id, int code) {
   } else if (r.stop_for_shutdown) {
     store_.update(r.job);  // stays RUNNING: the next ergd resumes it
     metrics_.remove_rate(id, r.job.tenant());
+  } else if (r.stopped_by_signal && r.failure.empty() && r.job.attempts() < cfg_.max_attempts) {
+    // Stopped from outside after writing a checkpoint (the batch system's
+    // walltime warning, preemption): queue it again; it resumes.
+    metrics_.remove_rate(id, r.job.tenant());
+    r.job.clear_launcher_id();
+    set_state_locked(r.job, erg::v1::QUEUED,
+                     "the worker was stopped by a signal at step " +
+                         std::to_string(r.job.progress().step()) +
+                         " after writing a checkpoint (walltime or preemption): it resumes");
+  } else if (r.stopped_by_signal && r.failure.empty()) {
+    finish_locked(r, erg::v1::FAILED,
+                  "stopped by a signal " + std::to_string(r.job.attempts()) +
+                      " times; ergd gives up after --max-attempts " +
+                      std::to_string(cfg_.max_attempts));
   } else {
     finish_locked(
         r, erg::v1::FAILED,
@@ -496,7 +573,9 @@ void JobManager::on_exit(const std::string& id, int code) {
 
 void JobManager::start_next_locked() {
   if (stopping_ || static_cast<int>(running_.size()) >= cfg_.max_running) return;
-  std::vector<Job> queued = store_.in_states({erg::v1::QUEUED});
+  std::vector<Job> queued;
+  for (auto& j : store_.in_states({erg::v1::QUEUED}))
+    if (!running_.count(j.id())) queued.push_back(std::move(j));  // not waiting in Slurm
   while (!queued.empty() && static_cast<int>(running_.size()) < cfg_.max_running) {
     std::map<std::string, int> per_tenant;
     for (const auto& [id, r] : running_) ++per_tenant[r.job.tenant()];
@@ -562,11 +641,28 @@ void JobManager::scheduler_loop() {
 }
 
 void JobManager::start() {
-  // Jobs a previous ergd left RUNNING: their workers got SIGTERM when it
-  // died (or ergd stopped them on shutdown) and checkpointed. Wait for any
-  // still writing, then queue them again ahead of newer jobs (same seq).
-  for (Job job : store_.in_states({erg::v1::RUNNING})) {
-    if (!job.launcher_id().empty() && launcher_.alive(job.launcher_id())) {
+  // Jobs a previous ergd had launched (a launcher id, not final).
+  for (Job job : store_.in_states({erg::v1::QUEUED, erg::v1::RUNNING})) {
+    if (job.launcher_id().empty()) continue;  // never launched: the queue takes it
+    std::lock_guard lock(mu_);
+    if (launcher_.reattachable()) {
+      // Slurm jobs outlive ergd: follow them again from where we left off.
+      Running& r = running_[job.id()];
+      r.job = job;
+      r.launcher_id = job.launcher_id();
+      r.last_saved = mono_s();
+      launcher_.attach(job.launcher_id(), request_for(job), job.launcher_offset(),
+                       callbacks(job.id()));
+      JobEvent m;
+      m.set_message("ergd restarted: following " + launcher_.name() + " job " + job.launcher_id() +
+                    " again");
+      event_locked(job, m);
+      continue;
+    }
+    // Local workers got SIGTERM when the old ergd died (or were stopped at
+    // its shutdown) and checkpointed. Wait for any still writing, then
+    // queue the job again ahead of newer jobs (same seq); it resumes.
+    if (launcher_.alive(job.launcher_id())) {
       launcher_.stop(job.launcher_id(), false);
       const double t0 = mono_s();
       while (launcher_.alive(job.launcher_id())) {
@@ -574,7 +670,7 @@ void JobManager::start() {
         ::usleep(100 * 1000);
       }
     }
-    std::lock_guard lock(mu_);
+    job.clear_launcher_id();
     set_state_locked(job, erg::v1::QUEUED,
                      "ergd restarted while the job ran: it resumes from its last checkpoint");
   }
@@ -587,6 +683,19 @@ void JobManager::start() {
 }
 
 void JobManager::shutdown() {
+  if (launcher_.reattachable()) {
+    // Batch jobs run on without ergd; the next ergd follows them again.
+    stopping_ = true;
+    launcher_.detach_all();
+    {
+      std::lock_guard lock(mu_);
+      for (auto& [id, r] : running_) store_.update(r.job);
+      running_.clear();
+    }
+    cv_.notify_all();
+    if (scheduler_.joinable()) scheduler_.join();
+    return;
+  }
   {
     std::unique_lock lock(mu_);
     stopping_ = true;

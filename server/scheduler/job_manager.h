@@ -49,6 +49,10 @@ struct ManagerConfig {
   std::int64_t max_job_disk_bytes = 0;  // per job output; 0: no limit
   double tenant_cell_steps = 0;         // queued + running cells x steps per tenant; 0: none
   std::int64_t max_spec_bytes = 256 * 1024;
+  // A worker stopped by a signal after a checkpoint (Slurm's walltime
+  // warning, preemption) is started again, at most this many times in all.
+  int max_attempts = 10;
+  int max_time_limit_minutes = 7 * 24 * 60;  // Resources.time_limit_minutes
 };
 
 class JobManager {
@@ -82,7 +86,8 @@ class JobManager {
     std::string launcher_id;
     bool cancel_requested = false;
     bool stop_for_shutdown = false;
-    double stop_sent_at = 0;  // monotonic seconds; 0: not asked to stop
+    bool stopped_by_signal = false;  // the worker said "stopped" (checkpoint written)
+    double stop_sent_at = 0;         // monotonic seconds; 0: not asked to stop
     double last_saved = 0;
     double last_progress_event = 0;
     double last_disk_check = 0;
@@ -94,7 +99,10 @@ class JobManager {
   void scheduler_loop();
   void start_next_locked();
   void launch_locked(erg::v1::Job job);
-  void on_line(const std::string& id, const std::string& line);
+  void on_line(const std::string& id, const std::string& line, std::int64_t offset);
+  void on_state(const std::string& id, const std::string& state);
+  LaunchCallbacks callbacks(const std::string& id);
+  LaunchRequest request_for(const erg::v1::Job& job) const;
   void on_exit(const std::string& id, int code);
   void finish_locked(Running& r, erg::v1::JobState state, const std::string& reason);
   void event_locked(const erg::v1::Job& job, erg::v1::JobEvent ev);
