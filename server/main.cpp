@@ -127,6 +127,24 @@ int main(int argc, char** argv) {
         cfg.max_job_disk_bytes = static_cast<std::int64_t>(number(0, 1e18));
       else if (a == "--tenant-cell-steps")
         cfg.tenant_cell_steps = number(0, 1e30);
+      else if (a == "--max-attempts")
+        cfg.max_attempts = static_cast<int>(number(1, 1000));
+      else if (a == "--launcher") {
+        if (v != "local" && v != "slurm")
+          throw std::invalid_argument("--launcher: '" + v + "' is not local or slurm");
+        launcher_kind = v;
+      } else if (a == "--slurm-template")
+        slurm.template_path = v;
+      else if (a == "--slurm-partition")
+        slurm.partition = v;
+      else if (a == "--slurm-account")
+        slurm.account = v;
+      else if (a == "--slurm-time-limit")
+        slurm.time_limit_minutes = static_cast<int>(number(1, 525600));
+      else if (a == "--slurm-gpus-per-node")
+        slurm.gpus_per_node = static_cast<int>(number(0, 64));
+      else if (a == "--slurm-signal")
+        slurm.signal_s = static_cast<int>(number(10, 86400));
       else
         throw std::invalid_argument("unknown flag " + a);
     }

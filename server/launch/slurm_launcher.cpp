@@ -110,9 +110,10 @@ std::string SlurmLauncher::render(const LaunchRequest& req) const {
 std::string SlurmLauncher::start(const LaunchRequest& req, LaunchCallbacks cb) {
   const std::string dir = fs::path(req.job_file).parent_path().string();
   const std::string script = dir + "/job.sbatch";
+  const std::string text = render(req);  // throws before anything is written
   {
     std::ofstream f(script + ".tmp", std::ios::trunc);
-    f << render(req);
+    f << text;
     if (!f) throw std::runtime_error("cannot write " + script);
   }
   fs::rename(script + ".tmp", script);
@@ -138,7 +139,7 @@ void SlurmLauncher::attach(const std::string& launcher_id, const LaunchRequest& 
 }
 
 std::string SlurmLauncher::state_of(const std::string& id) {
-  const CommandResult r = run_command({cfg_.squeue, "-h", "-j", id, "-o", "%T"}, 30);
+  const CommandResult r = run_command({cfg_.squeue, "-h", "-t", "all", "-j", id, "-o", "%T"}, 30);
   std::string s = r.out.substr(0, r.out.find('\n'));
   if (r.exit_code != 0) {
     // "Invalid job id specified": Slurm has forgotten the job (MinJobAge).

@@ -14,6 +14,7 @@
 
 #include "job/progress_line.h"
 #include "job/spec.h"
+#include "sim/tiling.h"
 
 namespace erg::server {
 
@@ -199,6 +200,13 @@ Job JobManager::submit(const std::string& tenant, const erg::v1::SubmitJobReques
       problems.push_back(std::string("resources.") + field + ": " + std::to_string(v) +
                          " is out of range [0, " + std::to_string(hi) + "]");
   };
+  if (problems.empty() && res.ranks() > 1) {
+    try {
+      (void)plan_tiles(spec, res.ranks());  // as the worker will tile it
+    } catch (const std::invalid_argument& e) {
+      problems.push_back(std::string("resources.ranks: ") + e.what());
+    }
+  }
   in_range("nodes", res.nodes(), 4096);
   in_range("gpus_per_node", res.gpus_per_node(), 64);
   in_range("time_limit_minutes", res.time_limit_minutes(), cfg_.max_time_limit_minutes);

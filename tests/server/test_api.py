@@ -131,6 +131,22 @@ class Api(ErgdTest):
         with self.assertRaises(grpc.RpcError) as e:
             self.ergd.submit(spec_json(), ranks=100000)
         self.assertIn("resources.ranks", e.exception.details())
+        # A rank count the worker could not tile the domain with is refused
+        # at submission, with the worker's own reason.
+        wide = spec_json(nx=64, ny=64)
+        wide["model"]["avalanche_iterations"] = 50
+        with self.assertRaises(grpc.RpcError) as e:
+            self.ergd.submit(wide, ranks=2)
+        self.assertEqual(e.exception.code(), grpc.StatusCode.INVALID_ARGUMENT)
+        self.assertIn("resources.ranks: cannot split 64 x 64 cells into 2 tiles",
+                      e.exception.details())
+        # Slurm requests are checked whatever the launcher.
+        req = S.SubmitJobRequest(spec=spec_of(spec_json()), resources=S.Resources(
+            partition="debug; rm -rf /", time_limit_minutes=-5))
+        with self.assertRaises(grpc.RpcError) as e:
+            self.ergd.stub.SubmitJob(req, metadata=md(ALICE), timeout=10)
+        self.assertIn("resources.partition", e.exception.details())
+        self.assertIn("resources.time_limit_minutes", e.exception.details())
         # Nothing was queued by any of them.
         self.assertFalse([j for j in self.ergd.stub.ListJobs(
             S.ListJobsRequest(page_size=1000), metadata=md(ALICE), timeout=10).jobs

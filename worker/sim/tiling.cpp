@@ -4,6 +4,16 @@
 
 namespace erg {
 
+dist::Decomposition plan_tiles(const erg::v1::JobSpec& spec, int ranks, int tiles_x, int tiles_y) {
+  const int gnx = static_cast<int>(spec.domain().nx()), gny = static_cast<int>(spec.domain().ny());
+  const AvalancheRounds round = ranks > 1 ? kTiledRounds : kOneTileRounds;
+  const Model whole = make_model(spec, gnx, gny, 0, 0, round);
+  // Neighbours' ghosts come from one tile: tiles at least as wide as the
+  // halo; each coarse wind cell lies in one tile.
+  return dist::decompose(gnx, gny, ranks, ranks > 1 ? whole.tile.halo : 1, tiles_x, tiles_y,
+                         whole.coarse.cx, whole.coarse.cy);
+}
+
 std::unique_ptr<Tiling> make_tiling(const erg::v1::JobSpec& spec, MPI_Comm world, int tiles_x,
                                     int tiles_y) {
   auto t = std::make_unique<Tiling>();
@@ -12,10 +22,7 @@ std::unique_ptr<Tiling> make_tiling(const erg::v1::JobSpec& spec, MPI_Comm world
   const int gnx = static_cast<int>(spec.domain().nx()), gny = static_cast<int>(spec.domain().ny());
   const AvalancheRounds round = t->tiled() ? kTiledRounds : kOneTileRounds;
   const Model whole = make_model(spec, gnx, gny, 0, 0, round);
-  // Neighbours' ghosts come from one tile: tiles at least as wide as the
-  // halo; each coarse wind cell lies in one tile.
-  t->d = dist::decompose(gnx, gny, t->size, t->tiled() ? whole.tile.halo : 1, tiles_x, tiles_y,
-                         whole.coarse.cx, whole.coarse.cy);
+  t->d = plan_tiles(spec, t->size, tiles_x, tiles_y);
   int dims[2] = {t->d.px, t->d.py}, periods[2] = {1, 1}, coords[2] = {0, 0};
   MPI_Cart_create(world, 2, dims, periods, 0, &t->cart);
   MPI_Cart_coords(t->cart, t->rank, 2, coords);
