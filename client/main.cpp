@@ -8,6 +8,8 @@
 // On ergd, the job service (remote/*.cpp; proto/erg/v1/service.proto):
 //   erg submit JOB.json [--watch] [--key K] [--steps N] [--snapshot-every K]
 //              [--checkpoint-every C] [--ranks P] [--threads T]   prints the job id
+//              [--partition P] [--account A] [--nodes N] [--gpus-per-node G]
+//              [--time-limit MINUTES]      the Slurm request (ergd --launcher slurm)
 //   erg jobs [--state S] [--all-pages]      the tenant's jobs, newest first
 //   erg status ID [--json]                  one job's record
 //   erg watch ID                            progress until the job ends
@@ -53,6 +55,8 @@ const CommandUsage kUsage[] = {
     {"submit",
      "  erg submit JOB.json [--watch] [--key IDEMPOTENCY_KEY] [--steps N] [--snapshot-every K]\n"
      "             [--checkpoint-every C] [--ranks P] [--threads T]\n"
+     "             [--partition P] [--account A] [--nodes N] [--gpus-per-node G]\n"
+     "             [--time-limit MINUTES]   (Slurm: ergd --launcher slurm)\n"
      "                       queue the job on ergd; prints its id on stdout\n"},
     {"jobs", "  erg jobs [--state queued|running|succeeded|failed|cancelled] [--all-pages]\n"},
     {"status", "  erg status ID [--json]\n"},

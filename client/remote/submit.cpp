@@ -1,5 +1,7 @@
 // erg submit JOB.json [--watch] [--key K] [--steps N] [--snapshot-every K]
 //                     [--checkpoint-every C] [--ranks P] [--threads T]
+//                     [--partition P] [--account A] [--nodes N] [--gpus-per-node G]
+//                     [--time-limit MINUTES]   (Slurm: ergd --launcher slurm)
 // The job is loaded and validated here exactly as `erg run` does, the run
 // overrides are erg run's (erg::job::parse_run_flags), and ergd validates it
 // again with the same code.
@@ -39,6 +41,20 @@ int cmd_submit(Remote& remote, const std::vector<std::string>& args) {
                                                    "--tiles", "--progress-fd", "--quiet"};
   bool watch = false;
   std::string key;
+  // The batch-system request (erg.v1.Resources); ergd validates the values.
+  std::string partition, account;
+  long nodes = 0, gpus = 0, minutes = 0;
+  auto integer = [&](size_t& i, const std::string& flag, long& out) {
+    if (i + 1 >= args.size()) return false;
+    try {
+      size_t used = 0;
+      out = std::stol(args[++i], &used);
+      return used == args[i].size() && out >= 0;
+    } catch (...) {
+      return false;
+    }
+    (void)flag;
+  };
   std::vector<std::string> run_args;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& a = args[i];
@@ -49,6 +65,12 @@ int cmd_submit(Remote& remote, const std::vector<std::string>& args) {
       key = args[++i];
       if (key.empty() || key.size() > 128)
         return usage_error("submit", "--key: 1 to 128 characters");
+    } else if (a == "--partition" || a == "--account") {
+      if (i + 1 >= args.size()) return usage_error("submit", a + ": missing value");
+      (a == "--partition" ? partition : account) = args[++i];
+    } else if (a == "--nodes" || a == "--gpus-per-node" || a == "--time-limit") {
+      long& out = a == "--nodes" ? nodes : a == "--gpus-per-node" ? gpus : minutes;
+      if (!integer(i, a, out)) return usage_error("submit", a + ": expected a whole number >= 0");
     } else if (kNotRemote.count(a)) {
       return usage_error("submit", a + " is not available for a remote job (ergd chooses the "
                                        "output folder, backend and tiles)");
@@ -88,6 +110,11 @@ int cmd_submit(Remote& remote, const std::vector<std::string>& args) {
   req.set_idempotency_key(key.empty() ? random_key() : key);
   req.mutable_resources()->set_ranks(flags.ranks);
   req.mutable_resources()->set_threads_per_rank(flags.threads);
+  req.mutable_resources()->set_partition(partition);
+  req.mutable_resources()->set_account(account);
+  req.mutable_resources()->set_nodes(static_cast<int>(std::min(nodes, 1L << 30)));
+  req.mutable_resources()->set_gpus_per_node(static_cast<int>(std::min(gpus, 1L << 30)));
+  req.mutable_resources()->set_time_limit_minutes(static_cast<int>(std::min(minutes, 1L << 30)));
 
   // A call lost on the way (the connection broke after the request may have
   // reached ergd) is retried for a while: the idempotency key makes a second

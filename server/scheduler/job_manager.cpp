@@ -469,6 +469,8 @@ void JobManager::on_line(const std::string& id, const std::string& line, std::in
   auto& p = *r.job.mutable_progress();
   const double now = mono_s();
   if (kind == "start") {
+    // The worker runs (a batch job may start before squeue says so).
+    if (r.job.state() == erg::v1::QUEUED) set_state_locked(r.job, erg::v1::RUNNING);
     p.set_step(static_cast<std::int64_t>(num(ev, "step")));
     p.set_total_steps(static_cast<std::int64_t>(num(ev, "steps")));
   } else if (kind == "progress" || kind == "done") {
