@@ -525,7 +525,7 @@ void JobManager::on_line(const std::string& id, const std::string& line, std::in
   } else if (kind == "stopped") {
     // Stopped on a signal after a checkpoint: where the job really is.
     r.stopped_by_signal = true;
-    p.set_step(static_cast<std::int64_t>(num(ev, "step")));
+    if (num(ev, "step") >= 0) p.set_step(static_cast<std::int64_t>(num(ev, "step")));
     p.set_steps_per_s(0);
     store_.update(r.job);
   } else if (kind == "failed") {

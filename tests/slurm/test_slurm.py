@@ -1,0 +1,121 @@
+"""ergd on a real one-node Slurm (munge, slurmctld, slurmd started in the
+test's temp directory): a 2-rank job submitted and watched with the erg
+CLI, a cancelled job, and a job whose walltime warning stops it (SIGTERM,
+checkpoint) so that ergd submits it again and it resumes, ending bitwise
+identical to an uninterrupted run. All daemons are stopped at the end."""
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "server"))
+
+from ergd_fixture import (ALICE, ERG, Ergd, ErgdTest, S, datasets, erg_run, md,  # noqa: E402
+                          spec_json)
+from slurm_cluster import SlurmCluster  # noqa: E402
+
+
+def have_slurm():
+    return os.geteuid() == 0 and all(shutil.which(c) for c in
+                                     ("slurmctld", "slurmd", "munged", "sbatch"))
+
+
+@unittest.skipUnless(have_slurm(), "needs root and Slurm (deploy/bootstrap.sh installs it)")
+class Slurm(ErgdTest):
+    @classmethod
+    def setUpClass(cls):
+        cls.tmpdir = tempfile.mkdtemp(prefix="ergd-slurm-", dir=os.environ.get("ERG_TEST_TMP"))
+        cls.cluster = SlurmCluster(os.path.join(cls.tmpdir, "slurm")).start()
+        os.environ["SLURM_CONF"] = cls.cluster.conf  # ergd's sbatch/squeue/scancel
+        cls.ergd = Ergd(cls.tmpdir, ("--launcher", "slurm", "--slurm-time-limit", "10",
+                                     "--slurm-signal", "50", "--cancel-grace", "20"))
+
+    @classmethod
+    def tearDownClass(cls):
+        try:
+            cls.ergd.stop()
+        finally:
+            cls.cluster.stop()
+            if os.environ.get("ERG_KEEP_TEST_DIRS") != "1":
+                shutil.rmtree(cls.tmpdir, ignore_errors=True)
+
+    def erg(self, *args, check=True):
+        r = subprocess.run([ERG] + list(args) + ["--server", self.ergd.addr, "--token", ALICE],
+                           capture_output=True, text=True, timeout=600)
+        if check:
+            self.assertEqual(r.returncode, 0, r.stderr[-3000:] + self.cluster.logs())
+        return r
+
+    def job_file(self, d, name):
+        path = os.path.join(self.tmpdir, name + ".json")
+        with open(path, "w") as f:
+            json.dump(d, f)
+        return path
+
+    def test_1_two_rank_job_submitted_and_watched_with_the_cli(self):
+        d = spec_json(name="slurm-2", nx=96, ny=96, steps=60, snapshot_every=30)
+        r = self.erg("submit", self.job_file(d, "two"), "--ranks", "2", "--threads", "1",
+                     "--watch")
+        job_id = r.stdout.strip().splitlines()[0]
+        j = self.ergd.get(job_id)
+        self.assertEqual(j.state, S.SUCCEEDED, j.failure_reason + j.log_tail)
+        self.assertEqual(j.launcher, "slurm")
+        self.assertTrue(re.fullmatch(r"\d+", j.launcher_id), j.launcher_id)
+        self.assertEqual(self.cluster.squeue_state(j.launcher_id), "COMPLETED")
+        with open(os.path.join(self.ergd.data, "jobs", job_id, "job.sbatch")) as f:
+            script = f.read()
+        self.assertIn("#SBATCH --ntasks=2", script)
+        self.assertIn("#SBATCH --time=10", script)
+        self.assertNotIn("--account", script)  # no value: the line is dropped
+        out = os.path.join(self.tmpdir, "fetched")
+        self.erg("fetch", job_id, "--out", out)
+        ref = erg_run(d, os.path.join(self.tmpdir, "ref-two"), self.tmpdir)
+        self.assertSameSnapshot(os.path.join(out, "step_00000060.h5"),
+                                os.path.join(ref, "snapshots", "step_00000060.h5"))
+
+    def test_2_cancel(self):
+        d = spec_json(name="slurm-cancel", nx=128, ny=128, steps=100000, snapshot_every=1000,
+                      checkpoint_every=100)
+        job_id = self.erg("submit", self.job_file(d, "cancel"), "--threads", "1").stdout.strip()
+        self.ergd.wait(job_id, until=lambda j: j.state == S.RUNNING and j.progress.step > 0,
+                       timeout=120)
+        self.erg("cancel", job_id)
+        w = self.erg("watch", job_id, check=False)
+        self.assertEqual(w.returncode, 3, w.stderr[-2000:])  # CANCELLED
+        j = self.ergd.get(job_id)
+        self.assertEqual(j.state, S.CANCELLED)
+        self.assertIn(self.cluster.squeue_state(j.launcher_id), ("FAILED", "CANCELLED",
+                                                                 "COMPLETED"))
+        ckpts = os.listdir(os.path.join(self.ergd.data, "jobs", job_id, "run", "checkpoints"))
+        self.assertTrue([c for c in ckpts if c.endswith(".h5")])
+
+    def test_3_walltime_warning_checkpoints_and_the_job_resumes_bitwise(self):
+        # A 1-minute walltime with the warning 50 s before its end: each
+        # attempt is stopped after about 10 s and the job needs about 30 s.
+        d = spec_json(name="slurm-walltime", nx=256, ny=256, steps=3000, snapshot_every=1000,
+                      checkpoint_every=250)
+        job_id = self.erg("submit", self.job_file(d, "walltime"), "--threads", "1",
+                          "--time-limit", "1").stdout.strip()
+        j = self.ergd.wait(job_id, timeout=900)
+        self.assertEqual(j.state, S.SUCCEEDED, j.failure_reason + j.log_tail)
+        self.assertGreaterEqual(j.attempts, 2)
+        notes = [ev.message for ev in self.ergd.stub.WatchJob(
+            S.WatchJobRequest(id=job_id), metadata=md(ALICE), timeout=60)
+            if ev.HasField("message")]
+        self.assertTrue(any("stopped by a signal" in n for n in notes), notes)
+        self.assertTrue(any("resumed from the last checkpoint" in n for n in notes), notes)
+        ref = erg_run(d, os.path.join(self.tmpdir, "ref-walltime"), self.tmpdir)
+        for step in (1000, 2000, 3000):
+            name = "step_%08d.h5" % step
+            self.assertSameSnapshot(
+                os.path.join(self.ergd.data, "jobs", job_id, "run", "snapshots", name),
+                os.path.join(ref, "snapshots", name))
+
+
+if __name__ == "__main__":
+    unittest.main()
