@@ -25,6 +25,10 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # test helpers that read our outputs with tools erg did not write
   python3 python3-h5py python3-numpy
+  # the Slurm launcher and its test cluster (slurmctld, slurmd, munge)
+  slurmctld slurmd slurm-client munge
+  # systemd-analyze verifies deploy/systemd/ergd.service
+  systemd
   # the Python gRPC client of the service tests, and the dashboard test
   python3-grpcio python3-protobuf chromium openssl
 )

@@ -116,6 +116,30 @@ class Slurm(ErgdTest):
                 os.path.join(self.ergd.data, "jobs", job_id, "run", "snapshots", name),
                 os.path.join(ref, "snapshots", name))
 
+    def test_4_erg_run_sbatch_without_the_server(self):
+        d = spec_json(name="sbatch", nx=96, ny=96, steps=40, snapshot_every=20)
+        out = os.path.join(self.tmpdir, "sbatch-out")
+        script = os.path.join(os.path.dirname(__file__), "..", "..", "deploy", "slurm",
+                              "erg-run.sbatch")
+        env = dict(self.cluster.env, ERG_BIN=os.path.dirname(ERG))
+        r = subprocess.run(["sbatch", "--parsable", "--ntasks=2", "--cpus-per-task=1",
+                            "--time=5", "--output=" + os.path.join(self.tmpdir, "sbatch-%j.out"),
+                            script, self.job_file(d, "sbatch"), out],
+                           capture_output=True, text=True, env=env, check=True)
+        slurm_id = r.stdout.strip().split(";")[0]
+        t0 = time.time()
+        while self.cluster.squeue_state(slurm_id) not in ("COMPLETED", "FAILED", "CANCELLED",
+                                                          "TIMEOUT"):
+            self.assertLess(time.time() - t0, 300, self.cluster.logs())
+            time.sleep(0.5)
+        with open(os.path.join(self.tmpdir, "sbatch-%s.out" % slurm_id)) as f:
+            log = f.read()
+        self.assertEqual(self.cluster.squeue_state(slurm_id), "COMPLETED", log)
+        self.assertIn("worker exited with 0", log)
+        ref = erg_run(d, os.path.join(self.tmpdir, "ref-sbatch"), self.tmpdir)
+        self.assertSameSnapshot(os.path.join(out, "snapshots", "step_00000040.h5"),
+                                os.path.join(ref, "snapshots", "step_00000040.h5"))
+
 
 if __name__ == "__main__":
     unittest.main()
