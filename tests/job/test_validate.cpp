@@ -2,8 +2,10 @@
 // (as a path), the bad value and what is allowed; parse errors name the field;
 // a valid spec has no problem; load_job_file names the file.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <cmath>
+#include <filesystem>
 #include <functional>
 #include <limits>
 #include <string>
@@ -290,6 +292,21 @@ const std::vector<BadSpec> kBadSpecs = {
      job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {"vegetation": {"map": {"scale": 2}}})"),
      nullptr,
      {"layers.vegetation.map.path is empty"}},
+    // Found by tests/fuzz: JSON may give an enum as a number, and proto3 keeps
+    // a number it has no name for; the spec was accepted.
+    {"UnknownTransportNumber",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "transport": 7)"),
+     nullptr,
+     {"transport = 7 is not a known value; allowed EXPECTED, STOCHASTIC"}},
+    {"UnknownPileShapeNumber",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {"sand": {"piles": [
+            {"x_m": 1, "y_m": 1, "height": 1, "radius_m": 4, "shape": -3}]}})"),
+     nullptr,
+     {"layers.sand.piles[0].shape = -3 is not a known value", "CONE, GAUSSIAN, CYLINDER"}},
+    {"UnknownMapFormatNumber",
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {"sand": {"map": {"path": "m.h5", "format": 3}}})"),
+     nullptr,
+     {"layers.sand.map.format = 3 is not a known value; allowed HDF5, PNG16"}},
 };
 
 INSTANTIATE_TEST_SUITE_P(Validate, RejectsBadSpec, ::testing::ValuesIn(kBadSpecs),
@@ -501,6 +518,48 @@ TEST(ValidateMaps, UnknownExtensionAsksForAFormat) {
   const auto problems =
       validate(parse_with_defaults(map_job("resistance", R"({"path": "m.dat"})")), dir.str());
   EXPECT_TRUE(HasProblem(problems, {"layers.resistance.map.format", "m.dat"}));
+}
+
+// Found by tests/fuzz: a path too long for the file system made validate()
+// throw std::filesystem::filesystem_error (erg check died in std::terminate).
+TEST(ValidateMaps, PathTooLongIsAProblemNotAnException) {
+  TempDir dir;
+  const std::string long_name(5000, 'a');
+  const std::string long_part(300, 'b');  // one component over NAME_MAX
+  for (const std::string& path : {long_name + ".h5", long_part + "/m.h5", "/" + long_part}) {
+    std::vector<std::string> problems;
+    ASSERT_NO_THROW(
+        problems = validate(parse_with_defaults(map_job("sand", R"({"path": ")" + path + R"("})")),
+                            dir.str()))
+        << path.size() << " characters";
+    EXPECT_TRUE(HasProblem(problems, {"layers.sand.map.path"})) << join(problems);
+  }
+}
+
+// A map must be a regular file: a directory is reported, and a FIFO or a
+// device (which would block or never end) is never opened.
+TEST(ValidateMaps, DirectoriesAndDevicesAreNotRead) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.file("maps.h5"));
+  EXPECT_TRUE(HasProblem(
+      validate(parse_with_defaults(map_job("sand", R"({"path": "maps.h5"})")), dir.str()),
+      {"layers.sand.map.path", "maps.h5", "not a regular file"}));
+  ASSERT_EQ(::mkfifo(dir.file("fifo.png").c_str(), 0600), 0);
+  EXPECT_TRUE(HasProblem(
+      validate(parse_with_defaults(map_job("sand", R"({"path": "fifo.png"})")), dir.str()),
+      {"layers.sand.map.path", "fifo.png", "not a regular file"}));
+  EXPECT_TRUE(HasProblem(
+      validate(parse_with_defaults(map_job("sand", R"({"path": "/dev/zero", "format": "PNG16"})"))),
+      {"layers.sand.map.path", "/dev/zero", "not a regular file"}));
+}
+
+// A path "a", NUL, ".h5" would have been opened as "a" by the C libraries.
+TEST(ValidateMaps, PathWithNulIsRejected) {
+  TempDir dir;
+  testing::write_h5_doubles(dir.file("a"), "/data", 64, 48, std::vector<double>(64 * 48, 1.0));
+  EXPECT_TRUE(HasProblem(
+      validate(parse_with_defaults(map_job("sand", R"({"path": "a\u0000.h5"})")), dir.str()),
+      {"layers.sand.map.path contains a NUL character"}));
 }
 
 // ---- load_job_file ---------------------------------------------------------------

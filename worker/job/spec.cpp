@@ -143,6 +143,18 @@ std::string range_text(const erg::v1::FieldSpec& s) {
   return t;
 }
 
+// "CONE, GAUSSIAN, CYLINDER": the names an enum field may take (its
+// *_UNSPECIFIED value is allowed too, and means the documented default).
+std::string enum_names(const pb::EnumDescriptor* e) {
+  std::string t;
+  for (int i = 0; i < e->value_count(); ++i) {
+    const std::string& n = e->value(i)->name();
+    if (n.size() >= 12 && n.compare(n.size() - 12, 12, "_UNSPECIFIED") == 0) continue;
+    t.append(t.empty() ? "" : ", ").append(n);
+  }
+  return t;
+}
+
 void validate_rec(const pb::Message& m, const std::string& path, std::vector<std::string>& out) {
   const pb::Descriptor* d = m.GetDescriptor();
   const pb::Reflection* r = m.GetReflection();
@@ -156,6 +168,15 @@ void validate_rec(const pb::Message& m, const std::string& path, std::vector<std
       } else if (r->HasField(m, f)) {
         validate_rec(r->GetMessage(m, f), name, out);
       }
+      continue;
+    }
+    if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_ENUM && !f->is_repeated()) {
+      // JSON may give an enum as a number; proto3 keeps numbers it has no
+      // name for, which no part of erg knows how to run.
+      const int v = r->GetEnumValue(m, f);
+      if (f->enum_type()->FindValueByNumber(v) == nullptr)
+        out.push_back(name + " = " + std::to_string(v) + " is not a known value; allowed " +
+                      enum_names(f->enum_type()));
       continue;
     }
     if (f->is_repeated() || !is_numeric(f)) continue;
@@ -233,9 +254,29 @@ void check_layer(const erg::v1::Layer& layer, const std::string& path, const Job
     out.push_back(mp + ".path is empty; name an HDF5 or 16-bit PNG file");
     return;
   }
+  if (map.path().find('\0') != std::string::npos) {
+    // The C calls below would stop at the NUL and open another file.
+    out.push_back(mp + ".path contains a NUL character; name an HDF5 or 16-bit PNG file");
+    return;
+  }
   const std::string file = resolve_path(map.path(), base_dir);
-  if (!fs::exists(file)) {
+  // The error_code overload: a name too long, a loop of links or a directory
+  // we may not search is a problem with the spec, not an exception.
+  std::error_code ec;
+  const fs::file_status st = fs::status(file, ec);
+  if (st.type() == fs::file_type::not_found) {
     out.push_back(mp + ".path = \"" + map.path() + "\": file not found (looked at " + file + ")");
+    return;
+  }
+  if (ec) {
+    out.push_back(mp + ".path = \"" + map.path() + "\" cannot be read: " + ec.message() +
+                  " (looked at " + file + ")");
+    return;
+  }
+  if (!fs::is_regular_file(st)) {
+    // A directory, a device or a FIFO (which would block the reader).
+    out.push_back(mp + ".path = \"" + map.path() + "\" is not a regular file (looked at " + file +
+                  ")");
     return;
   }
   auto format = map.format();
@@ -330,12 +371,15 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
     out.push_back("model.shadow_angle_min_deg = " + num(m.shadow_angle_min_deg()) +
                   " must be below model.shadow_angle_max_deg = " + num(m.shadow_angle_max_deg()));
   // The wind-warping coarse grid needs a divisor of each side (model.cpp).
-  const double max_coarse_m = 0.25 * 0.5 * std::min(m.warp_large_radius_m(), m.warp_small_radius_m());
-  for (const auto& [name, n] : {std::pair<const char*, long long>{"domain.nx", d.nx()}, {"domain.ny", d.ny()}})
+  const double max_coarse_m =
+      0.25 * 0.5 * std::min(m.warp_large_radius_m(), m.warp_small_radius_m());
+  for (const auto& [name, n] :
+       {std::pair<const char*, long long>{"domain.nx", d.nx()}, {"domain.ny", d.ny()}})
     if (wind_warping::coarse_factor(static_cast<int>(n), l, max_coarse_m) == 0)
-      out.push_back(std::string(name) + " = " + std::to_string(n) +
-                    " has no divisor c with " + name + " / c <= " + std::to_string(wind_warping::kMaxCoarseCells) +
-                    " (the coarse grid of the wind warping); choose a size with small prime factors");
+      out.push_back(
+          std::string(name) + " = " + std::to_string(n) + " has no divisor c with " + name +
+          " / c <= " + std::to_string(wind_warping::kMaxCoarseCells) +
+          " (the coarse grid of the wind warping); choose a size with small prime factors");
   if (m.warp_large_weight() + m.warp_small_weight() <= 0)
     out.push_back("model.warp_large_weight + model.warp_small_weight = 0; allowed > 0");
 
