@@ -116,6 +116,37 @@ class Slurm(ErgdTest):
                 os.path.join(self.ergd.data, "jobs", job_id, "run", "snapshots", name),
                 os.path.join(ref, "snapshots", name))
 
+    def test_5_a_job_requeued_by_slurm_resumes_from_its_checkpoint(self):
+        # Preemption or an admin's `scontrol requeue`: Slurm stops the batch
+        # script (SIGTERM: the worker checkpoints) and runs it again, with
+        # the same Slurm job id; the script resumes from the checkpoint.
+        d = spec_json(name="slurm-requeue", nx=96, ny=96, steps=800, snapshot_every=400,
+                      checkpoint_every=100)
+        job_id = self.erg("submit", self.job_file(d, "requeue"), "--threads", "1").stdout.strip()
+        j = self.ergd.wait(job_id, until=lambda j: j.state == S.RUNNING and j.progress.step >= 200,
+                           timeout=120)
+        subprocess.run(["scontrol", "requeue", j.launcher_id], check=True, env=self.cluster.env)
+        # Slurm holds a requeued job back for a while (its begin time moves
+        # about two minutes ahead); let it start again at once.
+        t0 = time.time()
+        while self.cluster.squeue_state(j.launcher_id) != "PENDING" and time.time() - t0 < 60:
+            time.sleep(0.2)
+        subprocess.run(["scontrol", "update", "JobId=" + j.launcher_id, "StartTime=now"],
+                       check=True, env=self.cluster.env)
+        done = self.ergd.wait(job_id, timeout=600)
+        self.assertEqual(done.state, S.SUCCEEDED, done.failure_reason + done.log_tail)
+        self.assertEqual(done.launcher_id, j.launcher_id)  # the same Slurm job, run twice
+        # Two starts in the progress file: the second at the checkpoint's step.
+        with open(os.path.join(self.ergd.data, "jobs", job_id, "progress-1.jsonl")) as f:
+            starts = [json.loads(line)["step"] for line in f if '"event":"start"' in line]
+        self.assertEqual(len(starts), 2, starts)
+        self.assertEqual(starts[0], 0)
+        self.assertGreaterEqual(starts[1], 200)
+        ref = erg_run(d, os.path.join(self.tmpdir, "ref-requeue"), self.tmpdir)
+        name = "step_00000800.h5"
+        self.assertSameSnapshot(os.path.join(self.ergd.data, "jobs", job_id, "run", "snapshots",
+                                             name), os.path.join(ref, "snapshots", name))
+
     def test_4_erg_run_sbatch_without_the_server(self):
         d = spec_json(name="sbatch", nx=96, ny=96, steps=40, snapshot_every=20)
         out = os.path.join(self.tmpdir, "sbatch-out")
