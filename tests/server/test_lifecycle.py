@@ -166,5 +166,30 @@ class DiskLimit(ErgdTest):
         self.assertTrue(j.log_tail)  # the worker's last words
 
 
+class ForcedCancel(ErgdTest):
+    extra_args = ("--cancel-grace", "0.3")
+
+    def test_a_worker_that_outlives_the_grace_period_is_killed(self):
+        import h5py
+        e = self.ergd
+        # Big, slow steps (768^2 on one thread): the SIGTERM waits for the end
+        # of a step, the grace period does not.
+        job = e.submit(spec_json(name="slow", nx=768, ny=768, steps=100000, snapshot_every=0,
+                                 checkpoint_every=1))
+        e.wait(job.id, until=running_past(2), timeout=120)
+        t0 = time.time()
+        e.stub.CancelJob(S.CancelJobRequest(id=job.id), metadata=md(ALICE), timeout=10)
+        j = e.wait(job.id, timeout=60)
+        self.assertEqual(j.state, S.CANCELLED)
+        self.assertLess(time.time() - t0, 30)
+        # Killed mid-write or not, every checkpoint file there is complete.
+        d = os.path.join(e.data, "jobs", job.id, "run", "checkpoints")
+        names = [n for n in os.listdir(d) if n.endswith(".h5")]
+        self.assertTrue(names)
+        for n in names:
+            with h5py.File(os.path.join(d, n), "r") as f:
+                self.assertEqual(f["sand_units"].shape, (768, 768))
+
+
 if __name__ == "__main__":
     unittest.main()
