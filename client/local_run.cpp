@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "job/progress_line.h"
 #include "job/run_flags.h"
 #include "job/spec.h"
 #include "progress_bar.h"
@@ -27,48 +28,6 @@ namespace erg::client {
 namespace {
 
 namespace fs = std::filesystem;
-
-// Minimal reader of the flat JSON objects erg-worker emits.
-std::map<std::string, std::string> parse_flat_json(const std::string& line) {
-  std::map<std::string, std::string> out;
-  size_t i = 0;
-  auto skip = [&] {
-    while (i < line.size() &&
-           (line[i] == ' ' || line[i] == ',' || line[i] == '{' || line[i] == '}'))
-      ++i;
-  };
-  while (i < line.size()) {
-    skip();
-    if (i >= line.size() || line[i] != '"') break;
-    size_t k = line.find('"', i + 1);
-    if (k == std::string::npos) break;
-    std::string key = line.substr(i + 1, k - i - 1);
-    i = k + 1;
-    if (i < line.size() && line[i] == ':') ++i;
-    std::string value;
-    if (i < line.size() && line[i] == '"') {
-      ++i;
-      while (i < line.size() && line[i] != '"') {
-        if (line[i] == '\\' && i + 1 < line.size()) ++i;
-        value += line[i++];
-      }
-      ++i;
-    } else if (i < line.size() && line[i] == '{') {
-      int depth = 0;
-      size_t start = i;
-      do {
-        if (line[i] == '{') ++depth;
-        if (line[i] == '}') --depth;
-        ++i;
-      } while (i < line.size() && depth > 0);
-      value = line.substr(start, i - start);
-    } else {
-      while (i < line.size() && line[i] != ',' && line[i] != '}') value += line[i++];
-    }
-    out[key] = value;
-  }
-  return out;
-}
 
 std::string worker_path() {
   if (const char* env = std::getenv("ERG_WORKER")) return env;
@@ -168,7 +127,7 @@ int cmd_run(const std::vector<std::string>& args) {
     pending.append(buf, static_cast<size_t>(n));
     size_t nl;
     while ((nl = pending.find('\n')) != std::string::npos) {
-      const auto ev = parse_flat_json(pending.substr(0, nl));
+      const auto ev = erg::job::parse_progress_line(pending.substr(0, nl));
       pending.erase(0, nl + 1);
       const std::string& kind = ev.count("event") ? ev.at("event") : "";
       auto num = [&](const char* k) { return ev.count(k) ? std::atof(ev.at(k).c_str()) : 0.0; };

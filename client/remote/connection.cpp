@@ -96,4 +96,16 @@ void sleep_seconds(double s) {
   if (s > 0) std::this_thread::sleep_for(std::chrono::duration<double>(s));
 }
 
+bool get_job(Remote& remote, const std::string& command, const std::string& id, erg::v1::Job* job,
+             int* code) {
+  erg::v1::GetJobRequest req;
+  req.set_id(id);
+  grpc::ClientContext ctx;
+  remote.prepare(ctx, kUnaryDeadline);
+  const grpc::Status status = remote.stub().GetJob(&ctx, req, job);
+  if (status.ok()) return true;
+  *code = remote.fail(command, status);
+  return false;
+}
+
 }  // namespace erg::client

@@ -53,4 +53,9 @@ void sleep_seconds(double s);
 // goes on", "the .part is kept"). An empty text restores the default.
 void set_interrupt_note(const std::string& text);
 
+// GetJob for `command`; on failure reports the error and returns false with
+// the exit code in `code`.
+bool get_job(Remote& remote, const std::string& command, const std::string& id, erg::v1::Job* job,
+             int* code);
+
 }  // namespace erg::client

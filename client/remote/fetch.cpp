@@ -181,18 +181,6 @@ int fetch_step(Remote& remote, const std::string& id, std::int64_t step, const s
   }
 }
 
-bool get_job(Remote& remote, const std::string& command, const std::string& id, erg::v1::Job* job,
-             int* code) {
-  erg::v1::GetJobRequest req;
-  req.set_id(id);
-  grpc::ClientContext ctx;
-  remote.prepare(ctx, kUnaryDeadline);
-  const grpc::Status status = remote.stub().GetJob(&ctx, req, job);
-  if (status.ok()) return true;
-  *code = remote.fail(command, status);
-  return false;
-}
-
 }  // namespace
 
 int cmd_fetch(Remote& remote, const std::vector<std::string>& args) {

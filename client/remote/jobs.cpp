@@ -78,19 +78,6 @@ int cmd_jobs(Remote& remote, const std::vector<std::string>& args) {
 
 namespace {
 
-// GetJob for `command`; on failure reports and returns false with `code`.
-bool get_job(Remote& remote, const std::string& command, const std::string& id, erg::v1::Job* job,
-             int* code) {
-  erg::v1::GetJobRequest req;
-  req.set_id(id);
-  grpc::ClientContext ctx;
-  remote.prepare(ctx, kUnaryDeadline);
-  const grpc::Status status = remote.stub().GetJob(&ctx, req, job);
-  if (status.ok()) return true;
-  *code = remote.fail(command, status);
-  return false;
-}
-
 void print_log_tail(const std::string& tail) {
   std::istringstream in(tail);
   std::string line;
