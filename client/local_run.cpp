@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "job/map_file.h"
 #include "job/run_flags.h"
 #include "job/spec.h"
 #include "progress_bar.h"
@@ -227,7 +228,12 @@ int cmd_check(const std::vector<std::string>& args) {
     return 2;
   }
   try {
-    std::cout << erg::job::to_json(erg::job::load_job_file(args[0])) << "\n";
+    const auto spec = erg::job::load_job_file(args[0]);
+    std::cout << erg::job::to_json(spec) << "\n";
+    // What each map file holds and what was done to fit it (pixel size,
+    // units, resampling, border blending), on stderr to keep stdout JSON.
+    for (const auto& note : erg::job::describe_maps(spec, erg::job::base_dir_of(args[0])))
+      std::cerr << "erg: " << note << "\n";
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "erg: invalid job:\n" << e.what() << "\n";
