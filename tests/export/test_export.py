@@ -315,6 +315,30 @@ class ExportTest(unittest.TestCase):
         self.assertAlmostEqual(float(b[5, 0]), float(b[5, -1]), places=5)  # the seam closed
         self.assertAlmostEqual(float(b[5, 32]), 16.0, places=5)  # the middle untouched
 
+    def test_bad_maps_are_refused_with_the_field_named(self):
+        wave = np.fromfunction(lambda j, i: np.sin(2 * np.pi * i / 32), (24, 32))
+        self.gdal_dem("deg.tif", wave, 0.001, srs_epsg=4326)
+        self.gdal_dem("wide.tif", wave, 3.0)  # 96 m x 72 m; the domain is 128 m x 96 m
+        holes = self.gdal_dem("holes.tif", wave, 4.0)
+        ds = gdal.Open(holes, gdal.GA_Update)
+        ds.GetRasterBand(1).SetNoDataValue(-9999)
+        ds.GetRasterBand(1).WriteArray(np.full((1, 1), -9999, np.float32), 3, 2)
+        ds = None
+        with open(self.out("junk.exr"), "wb") as f:
+            f.write(b"not an image" * 10)
+        cases = [
+            ("deg.tif", "geographic coordinates"),
+            ("wide.tif", "covers 96 m x 72 m"),
+            ("holes.tif", "has no data"),
+            ("junk.exr", "cannot read EXR"),
+        ]
+        for name, msg in cases:
+            jp = write_job(self.d, "bad.json", job(sand={"map": {"path": name}}))
+            p = erg("check", jp, check=False)
+            self.assertEqual(p.returncode, 2, name)
+            self.assertIn(f"layers.sand.map.path = \"{name}\"", p.stderr, name)
+            self.assertIn(msg, p.stderr, name)
+
     def test_png16_and_exr_exports_import_back(self):
         h = self.snap["height"].astype(np.float64)
         png = self.out("in.png")
