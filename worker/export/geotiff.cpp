@@ -30,6 +30,11 @@ void write_geotiff(const std::string& path, const Field& f, const Provenance& p)
     // No .aux.xml side files: everything lives in the TIFF.
     CPLSetConfigOption("GDAL_PAM_ENABLED", "NO");
   });
+  // Errors go into the exception, not to stderr.
+  CPLPushErrorHandler(CPLQuietErrorHandler);
+  struct Pop {
+    ~Pop() { CPLPopErrorHandler(); }
+  } pop;
   GDALDriverH drv = GDALGetDriverByName("GTiff");
   if (!drv) throw ExportError(path + ": GDAL has no GTiff driver");
   io::detail::AtomicFile out(path);

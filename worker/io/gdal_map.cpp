@@ -18,6 +18,15 @@ namespace erg::io {
 namespace {
 using detail::fail;
 
+// GDAL prints its errors on stderr by default; ours carry them in the
+// exception instead (CPLGetLastErrorMsg still records them).
+struct QuietGdal {
+  QuietGdal() { CPLPushErrorHandler(CPLQuietErrorHandler); }
+  ~QuietGdal() { CPLPopErrorHandler(); }
+  QuietGdal(const QuietGdal&) = delete;
+  QuietGdal& operator=(const QuietGdal&) = delete;
+};
+
 struct Dataset {
   GDALDatasetH h = nullptr;
   ~Dataset() {
@@ -29,6 +38,7 @@ struct Dataset {
 Map read_gdal_map(const std::string& path) {
   static std::once_flag once;
   std::call_once(once, [] { GDALAllRegister(); });
+  QuietGdal quiet;
   CPLErrorReset();
   Dataset ds;
   ds.h = GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
