@@ -93,8 +93,12 @@ int cmd_run(const std::vector<std::string>& args) {
   erg::job::RunFlags flags;
   try {
     flags = erg::job::parse_run_flags(args);
-    if (flags.resume_dir.empty())
-      (void)erg::job::load_job_file(flags.job_path);  // fail fast, one place
+    if (flags.resume_dir.empty()) {
+      const auto spec = erg::job::load_job_file(flags.job_path);  // fail fast, one place
+      // Say what was read from each map file and how it was fitted to the grid.
+      for (const auto& note : erg::job::describe_maps(spec, erg::job::base_dir_of(flags.job_path)))
+        std::cerr << "erg: " << note << "\n";
+    }
   } catch (const erg::job::SpecError& e) {
     std::cerr << "erg: invalid job:\n" << e.what() << "\n";
     return 2;

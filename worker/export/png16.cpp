@@ -14,7 +14,7 @@ namespace erg::exporting {
 namespace {
 std::string g(double v) {
   char buf[40];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
+  std::snprintf(buf, sizeof buf, "%.15g", v);
   return buf;
 }
 bool is_pow2_plus_1(int n) {
