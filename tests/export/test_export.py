@@ -293,7 +293,25 @@ class ExportTest(unittest.TestCase):
         y = (np.arange(NY) + 0.5) / 2 - 0.5
         want = 10 + 3 * np.outer(np.cos(2 * np.pi * y / 24), np.sin(2 * np.pi * x / 32))
         self.assertLess(np.max(np.abs(b - want)), 0.1)  # bilinear error of a smooth wave
-        self.assertTrue(os.path.exists(os.path.join(out, "snapshots", "step_00000010.h5")))
+
+    def test_resampled_geotiff_is_tiling_independent(self):
+        # Like every generator, a resampled map does not depend on the tiling:
+        # 1 and 2 ranks give the same bits (tiles of at least the widest halo,
+        # hence a 192 x 96 domain of 1 m cells; the DEM has 2 m pixels).
+        jj, ii = np.mgrid[0:48, 0:96]
+        dem = 5 + 2 * np.sin(2 * np.pi * ii / 48) + np.cos(2 * np.pi * jj / 24)
+        self.gdal_dem("dem2.tif", dem, 2.0)
+        spec = job(bedrock={"map": {"path": "dem2.tif"}}, steps=4)
+        spec["domain"] = {"nx": 192, "ny": 96, "cell_size_m": 1.0}
+        jp = write_job(self.d, "dem2.json", spec)
+        outs = []
+        for ranks in ("1", "2"):
+            outs.append(self.out(f"dem2-{ranks}"))
+            erg("run", jp, "--out", outs[-1], "--threads", "1", "--ranks", ranks)
+        for step in (0, 4):
+            a, b = snapshot(outs[0], step), snapshot(outs[1], step)
+            for k in ("bedrock", "sand"):
+                np.testing.assert_array_equal(a[k], b[k])
 
     def test_non_tileable_map_is_refused_then_blended(self):
         jj, ii = np.mgrid[0:NY, 0:NX]
