@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "job/map_file.h"
 #include "job/progress_line.h"
 #include "job/run_flags.h"
 #include "job/spec.h"
@@ -51,8 +52,12 @@ int cmd_run(const std::vector<std::string>& args) {
   erg::job::RunFlags flags;
   try {
     flags = erg::job::parse_run_flags(args);
-    if (flags.resume_dir.empty())
-      (void)erg::job::load_job_file(flags.job_path);  // fail fast, one place
+    if (flags.resume_dir.empty()) {
+      const auto spec = erg::job::load_job_file(flags.job_path);  // fail fast, one place
+      // Say what was read from each map file and how it was fitted to the grid.
+      for (const auto& note : erg::job::describe_maps(spec, erg::job::base_dir_of(flags.job_path)))
+        std::cerr << "erg: " << note << "\n";
+    }
   } catch (const erg::job::SpecError& e) {
     std::cerr << "erg: invalid job:\n" << e.what() << "\n";
     return 2;
@@ -186,7 +191,12 @@ int cmd_check(const std::vector<std::string>& args) {
     return 2;
   }
   try {
-    std::cout << erg::job::to_json(erg::job::load_job_file(args[0])) << "\n";
+    const auto spec = erg::job::load_job_file(args[0]);
+    std::cout << erg::job::to_json(spec) << "\n";
+    // What each map file holds and what was done to fit it (pixel size,
+    // units, resampling, border blending), on stderr to keep stdout JSON.
+    for (const auto& note : erg::job::describe_maps(spec, erg::job::base_dir_of(args[0])))
+      std::cerr << "erg: " << note << "\n";
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "erg: invalid job:\n" << e.what() << "\n";

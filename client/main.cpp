@@ -5,6 +5,8 @@
 //   erg run --resume DIR [--steps N]
 //   erg check JOB.json      validate a job and print it with every default filled in
 //   erg params              every model parameter: default, range, unit, source
+//   erg export DIR --format F --out FILE [--step S] [--layer L] [--region X0,Y0,W,H]
+//              [--upsample K] [--tiles NxM] [--normals]   GeoTIFF, PNG16, EXR, OBJ
 // On ergd, the job service (remote/*.cpp; proto/erg/v1/service.proto):
 //   erg submit JOB.json [--watch] [--key K] [--steps N] [--snapshot-every K]
 //              [--checkpoint-every C] [--ranks P] [--threads T]   prints the job id
@@ -52,6 +54,11 @@ const CommandUsage kUsage[] = {
      "  erg run --resume DIR [--steps N] [...]\n"},
     {"check", "  erg check JOB.json   validate a job; print it with all defaults\n"},
     {"params", "  erg params           list every model parameter with its default and source\n"},
+    {"export",
+     "  erg export DIR --format geotiff|png16|exr|obj --out FILE [--step S]\n"
+     "             [--layer height|sand|bedrock|vegetation] [--region X0,Y0,W,H]\n"
+     "             [--upsample K] [--tiles NxM] [--normals]\n"
+     "                       a snapshot (latest by default) for GIS and game engines\n"},
     {"submit",
      "  erg submit JOB.json [--watch] [--key IDEMPOTENCY_KEY] [--steps N] [--snapshot-every K]\n"
      "             [--checkpoint-every C] [--ranks P] [--threads T]\n"
@@ -148,6 +155,7 @@ int main(int argc, char** argv) {
   }
   if (cmd == "run") return cmd_run(args);
   if (cmd == "check") return cmd_check(args);
+  if (cmd == "export") return cmd_export(args);
   if (cmd == "params") {
     std::cout << erg::job::parameter_table_markdown();
     return 0;

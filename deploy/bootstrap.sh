@@ -17,6 +17,8 @@ packages=(
   libprotobuf-dev protobuf-compiler libgrpc++-dev protobuf-compiler-grpc
   # previews and map files
   libpng-dev zlib1g-dev
+  # GeoTIFF and OpenEXR map imports and exports (erg export)
+  libgdal-dev gdal-bin libopenexr-dev
   # ergd: job store, HTTP dashboard and metrics, TLS, sha256
   libsqlite3-dev libcpp-httplib-dev prometheus-cpp-dev libssl-dev
   # the libFuzzer target of the spec parser (clang's fuzzer runtime)
@@ -25,6 +27,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # test helpers that read our outputs with tools erg did not write
   python3 python3-h5py python3-numpy
+  # ... and read erg export's files: GDAL's Python bindings, PIL for 16-bit PNGs
+  python3-gdal python3-pil
   # the Slurm launcher and its test cluster (slurmctld, slurmd, munge)
   slurmctld slurmd slurm-client munge
   # systemd-analyze verifies deploy/systemd/ergd.service

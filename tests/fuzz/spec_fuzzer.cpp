@@ -42,6 +42,14 @@ Map read_png_map(const std::string& path) {
   throw IoError(path + ": map files are not read by the spec fuzzer");
 }
 
+Map read_gdal_map(const std::string& path) {
+  throw IoError(path + ": map files are not read by the spec fuzzer");
+}
+
+Map read_exr_map(const std::string& path) {
+  throw IoError(path + ": map files are not read by the spec fuzzer");
+}
+
 }  // namespace erg::io
 
 namespace {

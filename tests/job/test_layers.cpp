@@ -151,8 +151,11 @@ TEST(Generators, MapsAreTilingIndependent) {
   std::vector<std::uint16_t> png(96 * 80);
   for (size_t k = 0; k < png.size(); ++k) png[k] = static_cast<std::uint16_t>(k * 7919 % 65536);
   erg::job::testing::write_png16_raw(dir.file("m.png"), 96, 80, png);
-  for (const char* json : {R"({"map": {"path": "m.h5", "scale": 3, "offset": -1}})",
-                           R"({"map": {"path": "m.png", "scale": 10, "offset": 2}})"}) {
+  // seam_tolerance 1: the sine rows do not wrap smoothly (not what is tested here).
+  for (const char* json : {R"({"map": {"path": "m.h5", "scale": 3, "offset": -1,
+                                       "seam_tolerance": 1}})",
+                           R"({"map": {"path": "m.png", "scale": 10, "offset": 2,
+                                       "seam_tolerance": 1}})"}) {
     const Layer layer = layer_of(json);
     const auto ref = whole(layer, spec, LayerKind::kBedrock, dir.str());
     EXPECT_EQ(differing_cells(ref, tiled(layer, spec, {0, 40, 70, 96}, {0, 33, 80}, dir.str())), 0)
@@ -464,6 +467,8 @@ TEST(Piles, SumWithEachOtherAndTheOtherSources) {
 }
 
 // ---- maps ------------------------------------------------------------------------------
+// The maps below are ramps, whose opposite borders differ: seam_tolerance 1
+// accepts them (the tileability test has its own tests in tests/export).
 
 TEST(Maps, Hdf5WithOffsetScaleAndSubTiles) {
   TempDir dir;
@@ -476,7 +481,8 @@ TEST(Maps, Hdf5WithOffsetScaleAndSubTiles) {
   std::filesystem::create_directories(dir.file("maps"));
   erg::job::testing::write_h5_doubles(dir.file("maps/b.h5"), "/terrain/elev", nx, ny, raw);
   const Layer layer = layer_of(
-      R"({"map": {"path": "maps/b.h5", "dataset": "/terrain/elev", "scale": 0.5, "offset": -3}})");
+      R"({"map": {"path": "maps/b.h5", "dataset": "/terrain/elev", "scale": 0.5, "offset": -3,
+                     "seam_tolerance": 1}})");
   const auto f = whole(layer, spec, LayerKind::kBedrock, dir.str());
   for (int y = 0; y < ny; ++y)
     for (int x = 0; x < nx; ++x)
@@ -489,8 +495,9 @@ TEST(Maps, Hdf5WithOffsetScaleAndSubTiles) {
                        -3 + 0.5 * ((13 + x) + 100.0 * (7 + y)));
   // Default dataset "/data"; explicit format with an unrelated extension.
   erg::job::testing::write_h5_doubles(dir.file("plain.dat"), "/data", nx, ny, raw);
-  const auto h = whole(layer_of(R"({"map": {"path": "plain.dat", "format": "HDF5"}})"), spec,
-                       LayerKind::kBedrock, dir.str());
+  const auto h =
+      whole(layer_of(R"({"map": {"path": "plain.dat", "format": "HDF5", "seam_tolerance": 1}})"),
+            spec, LayerKind::kBedrock, dir.str());
   EXPECT_EQ(h, raw);
 }
 
@@ -513,7 +520,8 @@ TEST(Maps, Png16NorthUpWithOffsetScaleAndSubTiles) {
   const JobSpec spec = domain_spec(nx, ny, 1);
   erg::job::testing::write_png16_raw(dir.file("h.png"), nx, ny, png_rows(nx, ny));
   // value = offset + scale * raw / 65535 = sample - 1000 = x + 50 y.
-  const Layer layer = layer_of(R"({"map": {"path": "h.png", "scale": 65535, "offset": -1000}})");
+  const Layer layer = layer_of(
+      R"({"map": {"path": "h.png", "scale": 65535, "offset": -1000, "seam_tolerance": 1}})");
   const auto f = whole(layer, spec, LayerKind::kSand, dir.str());
   for (int y = 0; y < ny; ++y)
     for (int x = 0; x < nx; ++x)
@@ -536,11 +544,13 @@ TEST(Maps, Png16FormatIsFoundWhateverTheCaseOfTheExtension) {
   erg::job::testing::write_png16_raw(dir.file("h.img"), nx, ny, png_rows(nx, ny));
   // validate() accepts an upper-case .PNG as a PNG; the generator must agree.
   JobSpec job = spec;
-  *job.mutable_layers()->mutable_sand() = layer_of(R"({"map": {"path": "H.PNG", "scale": 65535}})");
+  *job.mutable_layers()->mutable_sand() =
+      layer_of(R"({"map": {"path": "H.PNG", "scale": 65535, "seam_tolerance": 1}})");
   ASSERT_TRUE(erg::job::validate(job, dir.str()).empty())
       << erg::job::testing::join(erg::job::validate(job, dir.str()));
-  for (const char* json : {R"({"map": {"path": "H.PNG", "scale": 65535}})",
-                           R"({"map": {"path": "h.img", "format": "PNG16", "scale": 65535}})"}) {
+  for (const char* json :
+       {R"({"map": {"path": "H.PNG", "scale": 65535, "seam_tolerance": 1}})",
+        R"({"map": {"path": "h.img", "format": "PNG16", "scale": 65535, "seam_tolerance": 1}})"}) {
     std::vector<double> f;
     ASSERT_NO_THROW(f = whole(layer_of(json), spec, LayerKind::kSand, dir.str())) << json;
     for (int y = 0; y < ny; ++y)

@@ -304,9 +304,9 @@ const std::vector<BadSpec> kBadSpecs = {
      nullptr,
      {"layers.sand.piles[0].shape = -3 is not a known value", "CONE, GAUSSIAN, CYLINDER"}},
     {"UnknownMapFormatNumber",
-     job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {"sand": {"map": {"path": "m.h5", "format": 3}}})"),
+     job(R"("wind": {"constant": {"speed_mps": 1}}, "layers": {"sand": {"map": {"path": "m.h5", "format": 9}}})"),
      nullptr,
-     {"layers.sand.map.format = 3 is not a known value; allowed HDF5, PNG16"}},
+     {"layers.sand.map.format = 9 is not a known value; allowed HDF5, PNG16, GEOTIFF, EXR"}},
 };
 
 INSTANTIATE_TEST_SUITE_P(Validate, RejectsBadSpec, ::testing::ValuesIn(kBadSpecs),

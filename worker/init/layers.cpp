@@ -8,6 +8,7 @@
 #include "core/philox.h"
 #include "init/noise.h"
 #include "io/io.h"
+#include "job/map_file.h"
 #include "job/spec.h"
 
 namespace erg::init {
@@ -140,19 +141,12 @@ void add_patches(const erg::v1::SandPatches& sp, std::uint64_t seed, const Domai
 
 void add_map(const erg::v1::MapFile& m, const erg::v1::JobSpec& spec, const TileGeom& t,
              const std::string& base_dir, std::vector<double>& out) {
-  const std::string file = job::resolve_path(m.path(), base_dir);
-  auto format = m.format();
-  if (format == erg::v1::MapFile::FORMAT_UNSPECIFIED) {
-    // As validate() guesses it: the extension, in any case.
-    std::string ext = file.size() > 4 ? file.substr(file.size() - 4) : "";
-    for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    format = ext == ".png" ? erg::v1::MapFile::PNG16 : erg::v1::MapFile::HDF5;
+  io::Map map;
+  try {
+    map = job::load_map(m, spec, base_dir);
+  } catch (const job::MapError& e) {
+    throw std::runtime_error("map" + std::string(e.what()));
   }
-  io::Map map = format == erg::v1::MapFile::HDF5
-                    ? io::read_hdf5_map(file, m.dataset().empty() ? "/data" : m.dataset())
-                    : io::read_png_map(file);
-  if (map.nx != spec.domain().nx() || map.ny != spec.domain().ny())
-    throw std::runtime_error(file + ": map size does not match the domain");
   for (int y = 0; y < t.ny; ++y)
     for (int x = 0; x < t.nx; ++x) {
       const size_t g = static_cast<size_t>(t.y0 + y) * map.nx + static_cast<size_t>(t.x0 + x);

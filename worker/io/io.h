@@ -95,6 +95,11 @@ void write_preview_png(const std::string& path, int nx, int ny, double cell_size
 struct Map {
   int nx = 0, ny = 0;
   std::vector<double> values;
+  // What the file says about itself (GeoTIFF: the geotransform and the
+  // linear unit of its CRS; 0 / empty where the file does not say).
+  double pixel_w = 0, pixel_h = 0;  // size of one pixel, in `units`
+  std::string units;                // e.g. "metre"; empty: unknown
+  double units_m = 0;               // metres per unit (0: unknown)
 };
 // HDF5: a 2-D dataset [ny][nx] of any integer or float type.
 Map read_hdf5_map(const std::string& path, const std::string& dataset);
@@ -103,6 +108,38 @@ Map read_hdf5_map(const std::string& path, const std::string& dataset);
 // palette images read as Rec. 709 luminance of the stored values (no gamma);
 // alpha is ignored.
 Map read_png_map(const std::string& path);
+// Any single-band raster GDAL reads (GeoTIFF first of all), band 1 as
+// doubles, north-up images flipped so that row 0 = south; pixel size and
+// units from the geotransform and the CRS's linear unit when georeferenced.
+// Nodata pixels are an error (a hole in a DEM has no height to start from).
+Map read_gdal_map(const std::string& path);
+// OpenEXR: channel "Y", else "R", else the only channel, as float; the first
+// image row is the north edge.
+Map read_exr_map(const std::string& path);
+
+// ---- fitting a map to the periodic grid (map_fit.cpp) ----------------------------
+// Mean absolute jump across the seam that joins column nx-1 to column 0
+// (axis 0) or row ny-1 to row 0 (axis 1), and the mean absolute jump between
+// neighbouring pixels inside the map along the same axis.
+struct Seam {
+  double jump = 0;      // mean |v(last) - v(first)| over the seam
+  double interior = 0;  // mean |v(i+1) - v(i)| inside the map
+};
+Seam seam_of(const Map& m, int axis);
+// max - min of the values (0 for a constant map).
+double range_of(const Map& m);
+// Cross-fades each border with the opposite one over `wx` columns and `wy`
+// rows (pixels of the map): the pixel at distance d < w from a seam becomes
+// a v + (1 - a) v_mirror with a = 1/2 + d / (2 w), v_mirror the pixel at the
+// same distance on the other side of the seam. Both sides of a seam then
+// meet at their mean, so the map wraps without a step.
+void blend_borders(Map& m, int wx, int wy);
+// Bilinear resampling to nx x ny cells on the torus: cell centres are mapped
+// onto the map's pixel centres with the map stretched over the whole domain,
+// and interpolation wraps across the edges (the map is tileable). Same size:
+// returned unchanged.
+Map resample_periodic(const Map& m, int nx, int ny);
+
 // 16-bit greyscale PNG writer (tests, exports): values in [0, 1], row 0 = south.
 void write_png16(const std::string& path, int nx, int ny, const std::vector<double>& values01);
 

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "io/io.h"
+#include "job/map_file.h"
 #include "stages/wind_warping.h"
 
 namespace erg::job {
@@ -251,12 +252,13 @@ void check_layer(const erg::v1::Layer& layer, const std::string& path, const Job
   const auto& map = layer.map();
   const std::string mp = path + ".map";
   if (map.path().empty()) {
-    out.push_back(mp + ".path is empty; name an HDF5 or 16-bit PNG file");
+    out.push_back(mp + ".path is empty; name an HDF5, 16-bit PNG, GeoTIFF or EXR file");
     return;
   }
   if (map.path().find('\0') != std::string::npos) {
     // The C calls below would stop at the NUL and open another file.
-    out.push_back(mp + ".path contains a NUL character; name an HDF5 or 16-bit PNG file");
+    out.push_back(mp +
+                  ".path contains a NUL character; name an HDF5, 16-bit PNG, GeoTIFF or EXR file");
     return;
   }
   const std::string file = resolve_path(map.path(), base_dir);
@@ -279,34 +281,17 @@ void check_layer(const erg::v1::Layer& layer, const std::string& path, const Job
                   ")");
     return;
   }
-  auto format = map.format();
-  if (format == erg::v1::MapFile::FORMAT_UNSPECIFIED) {
-    std::string ext = fs::path(file).extension().string();
-    for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    if (ext == ".h5" || ext == ".hdf5" || ext == ".he5")
-      format = erg::v1::MapFile::HDF5;
-    else if (ext == ".png")
-      format = erg::v1::MapFile::PNG16;
-    else {
-      out.push_back(mp + ".format is unset and the extension of \"" + map.path() +
-                    "\" is not .h5/.hdf5/.png; set format to HDF5 or PNG16");
-      return;
-    }
+  if (map_format(map, file) == erg::v1::MapFile::FORMAT_UNSPECIFIED) {
+    out.push_back(mp + ".format is unset and the extension of \"" + map.path() +
+                  "\" is not .h5/.hdf5/.png/.tif/.tiff/.exr; set format to HDF5, PNG16, GEOTIFF "
+                  "or EXR");
+    return;
   }
+  // The same reader, tileability test and resampling as the generator's.
   try {
-    io::Map m = format == erg::v1::MapFile::HDF5
-                    ? io::read_hdf5_map(file, map.dataset().empty() ? "/data" : map.dataset())
-                    : io::read_png_map(file);
-    if (m.nx != spec.domain().nx() || m.ny != spec.domain().ny())
-      out.push_back(mp + ".path = \"" + map.path() + "\" is " + std::to_string(m.nx) + " x " +
-                    std::to_string(m.ny) + " cells; the domain is " +
-                    std::to_string(spec.domain().nx()) + " x " +
-                    std::to_string(spec.domain().ny()) + " (nx x ny)");
-    for (double v : m.values)
-      if (!std::isfinite(v)) {
-        out.push_back(mp + ".path = \"" + map.path() + "\" contains a non-finite value");
-        break;
-      }
+    load_map(map, spec, base_dir);
+  } catch (const MapError& e) {
+    out.push_back(mp + e.what());
   } catch (const std::exception& e) {
     out.push_back(mp + ".path = \"" + map.path() + "\" cannot be read: " + e.what());
   }
