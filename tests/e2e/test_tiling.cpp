@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "../common/same_snapshots.h"
 #include "../common/temp_dir.h"
 #include "io/io.h"
 
@@ -87,17 +88,8 @@ std::string worker_on(int ranks, const std::string& args) {
 void expect_same_runs(const std::string& a, const std::string& b,
                       const std::vector<std::string>& steps, const std::string& what) {
   for (const auto& s : steps) {
-    const auto sa = erg::io::read_snapshot(a + "/snapshots/step_" + s + ".h5");
-    const auto sb = erg::io::read_snapshot(b + "/snapshots/step_" + s + ".h5");
-    EXPECT_TRUE(sa.bedrock == sb.bedrock) << what << " step " << s << ": /bedrock";
-    EXPECT_TRUE(sa.sand == sb.sand) << what << " step " << s << ": /sand";
-    EXPECT_TRUE(sa.vegetation == sb.vegetation) << what << " step " << s << ": /vegetation";
-    EXPECT_TRUE(sa.wind == sb.wind) << what << " step " << s << ": /wind";
-    EXPECT_TRUE(sa.airborne == sb.airborne) << what << " step " << s << ": /airborne";
-    EXPECT_TRUE(sa.shadow == sb.shadow) << what << " step " << s << ": /shadow";
-    EXPECT_EQ(sa.meta.sand_units_total, sb.meta.sand_units_total) << what << " step " << s;
-    EXPECT_EQ(sa.meta.bedrock_units_total, sb.meta.bedrock_units_total) << what << " step " << s;
-    EXPECT_EQ(sa.meta.airborne_units_total, sb.meta.airborne_units_total) << what << " step " << s;
+    erg::test::expect_same_snapshot(a + "/snapshots/step_" + s + ".h5",
+                                    b + "/snapshots/step_" + s + ".h5", what + " step " + s);
     const std::string ca = a + "/checkpoints/step_" + s + ".h5",
                       cb = b + "/checkpoints/step_" + s + ".h5";
     if (fs::exists(ca) && fs::exists(cb)) {

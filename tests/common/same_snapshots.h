@@ -1,0 +1,28 @@
+// Bitwise comparison of two snapshot files: every field and the exact totals
+// (e2e tests of tiling, restarts and steering).
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "io/io.h"
+
+namespace erg::test {
+
+inline void expect_same_snapshot(const std::string& a, const std::string& b,
+                                 const std::string& what) {
+  const auto sa = erg::io::read_snapshot(a);
+  const auto sb = erg::io::read_snapshot(b);
+  EXPECT_TRUE(sa.bedrock == sb.bedrock) << what << ": /bedrock";
+  EXPECT_TRUE(sa.sand == sb.sand) << what << ": /sand";
+  EXPECT_TRUE(sa.vegetation == sb.vegetation) << what << ": /vegetation";
+  EXPECT_TRUE(sa.wind == sb.wind) << what << ": /wind";
+  EXPECT_TRUE(sa.airborne == sb.airborne) << what << ": /airborne";
+  EXPECT_TRUE(sa.shadow == sb.shadow) << what << ": /shadow";
+  EXPECT_EQ(sa.meta.sand_units_total, sb.meta.sand_units_total) << what;
+  EXPECT_EQ(sa.meta.bedrock_units_total, sb.meta.bedrock_units_total) << what;
+  EXPECT_EQ(sa.meta.airborne_units_total, sb.meta.airborne_units_total) << what;
+}
+
+}  // namespace erg::test
