@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "sim_test_util.h"
@@ -233,6 +234,100 @@ TEST(Behaviour, OppositeWindsOfEqualStrengthKeepAPileInPlace) {
   EXPECT_GT(*std::max_element(s.begin(), s.end()), 1.0);
   (void)nx;
   (void)ny;
+}
+
+// Obstacles [BR04 4.1]: a 4 m wall across the wind on 0.5 m of sand. Sand
+// whose hop meets the wall lands at its windward foot, so sand piles up on
+// the windward side; the wind shadow behind it keeps the lee starved; no
+// sand ever enters the wall.
+TEST(Behaviour, SandAccumulatesOnTheWindwardSideOfAWall) {
+  const int nx = 192, ny = 64, steps = 200;
+  Simulation sim(spec_from(R"({
+      "domain": {"nx": 192, "ny": 64, "cell_size_m": 1.0},
+      "layers": {"sand": {"constant": 0.5},
+                 "obstacles": {"shapes": [{"height_m": 4,
+                     "rect": {"x_m": 100, "y_m": 16, "size_x_m": 4, "size_y_m": 32}}]}},
+      "wind": {"constant": {"speed_mps": 6}},
+      "run": {"steps": 200}})"),
+                 ".", cpu_threads(2));
+  long inside = 0;
+  for (int s = 0; s < steps; ++s) {
+    sim.step();
+    if (s % 20 == 19) {
+      const TileState st = sim.state();
+      for (int y = 0; y < ny; ++y)
+        for (int x = 0; x < nx; ++x)
+          if (obstacles::is_obstacle(st.obstacles(x, y)))
+            inside += st.sand(x, y) != 0 || st.airborne(x, y) != 0;
+    }
+  }
+  EXPECT_EQ(inside, 0) << "sand inside the wall";
+  const auto sand = sand_m(sim.state());
+  // Mean thickness in a band of rows [20, 44) (away from the wall's ends) and
+  // columns [x0, x1).
+  auto band = [&](int x0, int x1) {
+    double sum = 0;
+    for (int y = 20; y < 44; ++y)
+      for (int x = x0; x < x1; ++x) sum += sand[static_cast<size_t>(y) * nx + x];
+    return sum / (24.0 * (x1 - x0));
+  };
+  const double windward = band(92, 100);  // 8 m upwind of the wall
+  const double lee = band(104, 112);      // 8 m downwind
+  const double open = band(20, 80);       // far upstream
+  RecordProperty("windward_m", std::to_string(windward));
+  RecordProperty("lee_m", std::to_string(lee));
+  RecordProperty("open_m", std::to_string(open));
+  std::printf("windward %.3f m, lee %.3f m, open ground %.3f m (initially 0.5 m)\n", windward, lee,
+              open);
+  // Every hop that meets the wall ends in front of it: the windward band
+  // gains what the 32 m of wall intercept, the lee gets nothing over the wall.
+  EXPECT_GT(windward, 0.5) << "no accumulation in front of the wall";
+  EXPECT_GT(windward, 2.0 * open) << "the windward side is not where the sand went";
+  EXPECT_LT(lee, open) << "the lee of the wall is not starved";
+}
+
+// Wind shadow behind an obstacle [BR04 4.3, N24 eq. 4]: the obstacle height
+// counts as terrain for the shadow. Behind a wall of height H the upwind angle
+// at distance d is about atan(H / d): fully shadowed while H / d > tan 15
+// deg, free beyond H / tan 10 deg (and beyond the 10 m shadow radius).
+TEST(Behaviour, ObstaclesCastAWindShadowThatGrowsWithTheirHeight) {
+  auto shadow_behind = [](double height) {
+    Simulation sim(spec_from(R"({
+        "domain": {"nx": 128, "ny": 32, "cell_size_m": 1.0},
+        "layers": {"obstacles": {"shapes": [{"height_m": )" +
+                             std::to_string(height) + R"(,
+                       "rect": {"x_m": 40, "y_m": 8, "size_x_m": 2, "size_y_m": 16}}]}},
+        "wind": {"constant": {"speed_mps": 5}},
+        "model": {"warp_large_weight": 1, "warp_small_weight": 0, "warp_large_deviation": 0,
+                  "venturi_k": 0},
+        "run": {"steps": 1}})"),
+                   ".", cpu_threads(1));
+    sim.step();
+    std::vector<float> shadow;
+    sim.backend().download_shadow(shadow);
+    const TileState st = sim.state();
+    EXPECT_EQ(units_to_m_d(st.bedrock(60, 16)), 0.0) << "the obstacle went into the bedrock";
+    return shadow;
+  };
+  for (const double h : {1.0, 4.0}) {
+    const auto sh = shadow_behind(h);
+    auto at = [&](int x, int y) { return sh[static_cast<size_t>(y) * 128 + x]; };
+    // Distance from the wall's lee face (x = 42) to cell centres x + 0.5.
+    int full = 0, any = 0;
+    for (int x = 42; x < 60; ++x) {
+      if (at(x, 16) >= 1.0f) full = x - 41;
+      if (at(x, 16) > 0.0f) any = x - 41;
+    }
+    std::printf("wall %.0f m: fully shadowed to %d m, shadowed to %d m behind it\n", h, full, any);
+    RecordProperty(h < 2 ? "shadow_full_1m" : "shadow_full_4m", full);
+    const double tan10 = std::tan(10 * kPi / 180), tan15 = std::tan(15 * kPi / 180);
+    // Full shadow while H / d > tan 15 (d up to H / tan 15 - 1 for the
+    // bilinear samples), none beyond min(H / tan 10, R_s = 10 m) + 1.
+    EXPECT_GE(full, std::min(static_cast<int>(h / tan15) - 1, 8)) << "H = " << h;
+    EXPECT_LE(any, static_cast<int>(std::min(h / tan10, 10.0)) + 2) << "H = " << h;
+    for (int x = 10; x < 38; ++x) EXPECT_EQ(at(x, 16), 0.0f) << "upwind x=" << x;
+    for (int x = 42; x < 60; ++x) EXPECT_EQ(at(x, 2), 0.0f) << "beside the wall x=" << x;
+  }
 }
 
 }  // namespace

@@ -55,6 +55,7 @@ class CpuBackend final : public Backend {
   total_t apply_sand_brush(const events::Brush& b) override;
   total_t apply_bedrock_brush(const events::Brush& b) override;
   void set_vegetation(const events::Region& r) override;
+  total_t set_obstacle(const obstacles::Shape& s, bool remove) override;
   Totals totals() override;
 
  private:
@@ -71,6 +72,9 @@ class CpuBackend final : public Backend {
   // exact state
   Field<units_t> bedrock_, sand_, airborne_;
   Field<float> vegetation_, resistance_;
+  Field<float> obstacles_;       // obstacle heights, ghosts filled over the whole halo
+  bool any_obstacles_ = false;  // on this tile or its ghosts (saltation's slow path)
+  void obstacles_changed();     // refills the ghosts, updates any_obstacles_
   bool bedrock_changed_ = true;  // since bedrock avalanching last found it settled
   // derived each step
   Field<float> height_m_;  // b + s in metres, halo filled for the shadow march

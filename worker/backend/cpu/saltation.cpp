@@ -2,6 +2,8 @@
 // one hop downwind, reverse halo accumulation, deposition/bounce/abrasion.
 #include "stages/saltation.h"
 
+#include "stages/obstacles.h"
+
 #include <algorithm>
 #include <vector>
 
@@ -106,6 +108,39 @@ void scatter_row_stochastic(units_t* air, const float* wx, const float* wy, cons
   }
 }
 
+// With obstacles within reach: each hop walks its path and never lands in an
+// obstacle (stages/obstacles.h, [BR04 4.1]); both transport modes, scalar.
+// Without any in reach the result is exactly that of the rows above.
+void scatter_row_obstacles(units_t* air, const float* wx, const float* wy, const TileGeom& g,
+                           int y, std::uint64_t seed, std::uint64_t step,
+                           const saltation::Params& p, const float* o_base,
+                           Field<units_t>& landed) {
+  const long pitch = g.pitch;
+  for (int x = 0; x < g.nx; ++x) {
+    const units_t a = air[x];
+    if (a == 0) continue;
+    air[x] = 0;
+    const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, p);
+    const obstacles::Path path = obstacles::hop_path(
+        o_base, pitch, x, y, static_cast<float>(L.x0 - x) + L.fx, static_cast<float>(L.y0 - y) + L.fy);
+    if (p.stochastic) {
+      const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLanding).v[0]);
+      const int k = saltation::pick_corner(L.fx, L.fy, u);
+      const obstacles::Cell c =
+          obstacles::receiver(o_base, pitch, L.x0 + (k & 1), L.y0 + (k >> 1), path);
+      landed(c.x, c.y) += a;
+    } else {
+      units_t q[4];
+      saltation::split_bilinear(a, L.fx, L.fy, q);
+      for (int k = 0; k < 4; ++k) {
+        const obstacles::Cell c =
+            obstacles::receiver(o_base, pitch, L.x0 + (k & 1), L.y0 + (k >> 1), path);
+        landed(c.x, c.y) += q[k];
+      }
+    }
+  }
+}
+
 }  // namespace
 
 void CpuBackend::saltation(std::int64_t step) {
@@ -134,7 +169,10 @@ void CpuBackend::saltation(std::int64_t step) {
       std::vector<long> target(static_cast<size_t>(g_.nx));
       std::vector<units_t> parts(4 * static_cast<size_t>(g_.nx));
       for (int y = y_begin; y < y_end; ++y) {
-        if (p.stochastic) {
+        if (any_obstacles_) {
+          scatter_row_obstacles(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_, y, seed,
+                                ustep, p, obstacles_.data() + g_.at(0, 0), landed_);
+        } else if (p.stochastic) {
           scatter_row_stochastic(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_, y, seed,
                                  ustep, p, landed_);
         } else {

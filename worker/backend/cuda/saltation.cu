@@ -5,6 +5,7 @@
 // record the reptation strength.
 #include "backend/cuda/cuda_backend.h"
 #include "core/philox.h"
+#include "stages/obstacles.h"
 #include "stages/saltation.h"
 
 namespace erg::gpu {
@@ -38,7 +39,8 @@ __global__ void lift_kernel(TileGeom g, saltation::Params p, std::uint64_t seed,
 // (2) One hop downwind into `landed` (owned + ghosts).
 __global__ void scatter_kernel(TileGeom g, saltation::Params p, std::uint64_t seed,
                                std::uint64_t step, units_t* airborne, const float* wind_x,
-                               const float* wind_y, units_t* landed) {
+                               const float* wind_y, const float* ob, bool any_obstacles,
+                               units_t* landed) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -46,6 +48,29 @@ __global__ void scatter_kernel(TileGeom g, saltation::Params p, std::uint64_t se
   if (a == 0) return;
   airborne[i] = 0;
   const saltation::Landing L = saltation::landing(x, y, {wind_x[i], wind_y[i]}, p);
+  if (any_obstacles) {
+    // Hops never land in an obstacle [BR04 4.1] (stages/obstacles.h), as on the CPU.
+    const float* o_base = ob + g.at(0, 0);
+    const obstacles::Path path =
+        obstacles::hop_path(o_base, g.pitch, x, y, static_cast<float>(L.x0 - x) + L.fx,
+                            static_cast<float>(L.y0 - y) + L.fy);
+    if (p.stochastic) {
+      const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLanding).v[0]);
+      const int k = saltation::pick_corner(L.fx, L.fy, u);
+      const obstacles::Cell c =
+          obstacles::receiver(o_base, g.pitch, L.x0 + (k & 1), L.y0 + (k >> 1), path);
+      add_units(landed + g.at(c.x, c.y), a);
+    } else {
+      units_t q[4];
+      saltation::split_bilinear(a, L.fx, L.fy, q);
+      for (int k = 0; k < 4; ++k) {
+        const obstacles::Cell c =
+            obstacles::receiver(o_base, g.pitch, L.x0 + (k & 1), L.y0 + (k >> 1), path);
+        add_units(landed + g.at(c.x, c.y), q[k]);
+      }
+    }
+    return;
+  }
   if (p.stochastic) {
     const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLanding).v[0]);
     const int k = saltation::pick_corner(L.fx, L.fy, u);
@@ -95,7 +120,7 @@ void CudaBackend::saltation(std::int64_t step) {
 
   ERG_CUDA_CHECK(cudaMemsetAsync(landed_.get(), 0, landed_.bytes()));
   ERG_LAUNCH(scatter_kernel, l.grid, l.block, g_, p, seed, ustep, airborne_.get(), wind_x_.get(),
-             wind_y_.get(), landed_.get());
+             wind_y_.get(), obstacles_.get(), any_obstacles_, landed_.get());
   // Sand that left the tile re-enters on the opposite side (the torus).
   sum(landed_, m_.halo_saltation());
 
