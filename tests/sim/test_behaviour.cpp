@@ -238,22 +238,23 @@ TEST(Behaviour, OppositeWindsOfEqualStrengthKeepAPileInPlace) {
 
 // Obstacles [BR04 4.1]: a 4 m wall across the wind on 0.5 m of sand. Sand
 // whose hop meets the wall lands at its windward foot, so sand piles up on
-// the windward side; the wind shadow behind it keeps the lee starved; no
-// sand ever enters the wall.
+// the windward side; the wind shadow behind it keeps the lee from being
+// eroded (no lift where sigma = 1), while open ground is stripped; no sand
+// ever enters the wall.
 TEST(Behaviour, SandAccumulatesOnTheWindwardSideOfAWall) {
-  const int nx = 192, ny = 64, steps = 200;
+  const int nx = 128, ny = 48, steps = 100;
   Simulation sim(spec_from(R"({
-      "domain": {"nx": 192, "ny": 64, "cell_size_m": 1.0},
+      "domain": {"nx": 128, "ny": 48, "cell_size_m": 1.0},
       "layers": {"sand": {"constant": 0.5},
                  "obstacles": {"shapes": [{"height_m": 4,
-                     "rect": {"x_m": 100, "y_m": 16, "size_x_m": 4, "size_y_m": 32}}]}},
+                     "rect": {"x_m": 64, "y_m": 12, "size_x_m": 4, "size_y_m": 24}}]}},
       "wind": {"constant": {"speed_mps": 6}},
-      "run": {"steps": 200}})"),
+      "run": {"steps": 100}})"),
                  ".", cpu_threads(2));
   long inside = 0;
   for (int s = 0; s < steps; ++s) {
     sim.step();
-    if (s % 20 == 19) {
+    if (s % 10 == 9) {
       const TileState st = sim.state();
       for (int y = 0; y < ny; ++y)
         for (int x = 0; x < nx; ++x)
@@ -263,27 +264,27 @@ TEST(Behaviour, SandAccumulatesOnTheWindwardSideOfAWall) {
   }
   EXPECT_EQ(inside, 0) << "sand inside the wall";
   const auto sand = sand_m(sim.state());
-  // Mean thickness in a band of rows [20, 44) (away from the wall's ends) and
-  // columns [x0, x1).
+  // Mean thickness in rows [16, 32) (away from the wall's ends), columns [x0, x1).
   auto band = [&](int x0, int x1) {
     double sum = 0;
-    for (int y = 20; y < 44; ++y)
+    for (int y = 16; y < 32; ++y)
       for (int x = x0; x < x1; ++x) sum += sand[static_cast<size_t>(y) * nx + x];
-    return sum / (24.0 * (x1 - x0));
+    return sum / (16.0 * (x1 - x0));
   };
-  const double windward = band(92, 100);  // 8 m upwind of the wall
-  const double lee = band(104, 112);      // 8 m downwind
-  const double open = band(20, 80);       // far upstream
+  const double windward = band(56, 64);  // 8 m upwind of the wall
+  const double lee = band(68, 76);       // 8 m downwind
+  const double open = band(10, 50);      // upstream open ground
   RecordProperty("windward_m", std::to_string(windward));
   RecordProperty("lee_m", std::to_string(lee));
   RecordProperty("open_m", std::to_string(open));
-  std::printf("windward %.3f m, lee %.3f m, open ground %.3f m (initially 0.5 m)\n", windward, lee,
-              open);
+  std::printf("after %d steps: windward %.3f m, lee %.3f m, open ground %.3f m (initially 0.5 m)\n",
+              steps, windward, lee, open);
   // Every hop that meets the wall ends in front of it: the windward band
-  // gains what the 32 m of wall intercept, the lee gets nothing over the wall.
-  EXPECT_GT(windward, 0.5) << "no accumulation in front of the wall";
-  EXPECT_GT(windward, 2.0 * open) << "the windward side is not where the sand went";
-  EXPECT_LT(lee, open) << "the lee of the wall is not starved";
+  // gains what the 24 m of wall intercept.
+  EXPECT_GT(windward, 2 * 0.5) << "no accumulation in front of the wall";
+  EXPECT_GT(windward, 3.0 * open) << "the windward side is not where the sand went";
+  // The lee is in the wall's shadow: nothing is lifted there.
+  EXPECT_GE(lee, 0.5) << "the lee of the wall was eroded";
 }
 
 // Wind shadow behind an obstacle [BR04 4.3, N24 eq. 4]: the obstacle height
