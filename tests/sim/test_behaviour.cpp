@@ -331,5 +331,78 @@ TEST(Behaviour, ObstaclesCastAWindShadowThatGrowsWithTheirHeight) {
   }
 }
 
+// Echo dunes [N24 3.5, TK23]: a vertical 8 m bedrock cliff faces a 6 m/s
+// wind across 0.5 m of sand. With echo dunes on, the cells within the gap
+// ratio times the cliff height of its foot are erosion cells and the next
+// ones sticky: after some steps the foot is bare and a dune stands upwind,
+// separated from the cliff by a gap of the order of the cliff height (the
+// wind tunnel picture of Tsoar 1983, N24 Fig. 4). Without them, sand piles
+// against the cliff's foot (no gap).
+struct EchoProfile {
+  double gap_m;       // from the cliff's foot to the first cell upwind holding >= 0.1 m
+  double crest_m;     // from the foot to the highest sand upwind
+  double crest_sand;  // its thickness
+};
+EchoProfile echo_profile(bool echo) {
+  const int nx = 192, ny = 16, foot = 120;  // the cliff face is the west edge of x = 120
+  Simulation sim(spec_from(std::string(R"({
+      "domain": {"nx": 192, "ny": 16, "cell_size_m": 1.0},
+      "layers": {"sand": {"constant": 0.5}},
+      "wind": {"constant": {"speed_mps": 6}},
+      "model": {"warp_large_weight": 1, "warp_small_weight": 0, "warp_large_deviation": 0,
+                "venturi_k": 0, "bedrock_avalanche_iterations": 0, "echo_dunes": )") +
+                           (echo ? "true" : "false") + R"(},
+      "run": {"steps": 150}})"),
+                 ".", cpu_threads(2));
+  TileState st = sim.state();
+  for (int y = 0; y < ny; ++y)
+    for (int x = 0; x < nx; ++x) {
+      // Plateau 8 m high on [120, 160), a 17 degree slope down to x = 186.
+      const double h = x < foot ? 0.0 : x < 160 ? 8.0 : std::max(0.0, 8.0 - (x - 159) * 0.3);
+      st.bedrock(x, y) = m_to_units(h);
+      st.sand(x, y) = x < foot - 40 || x >= 190 ? m_to_units(0.5) : 0;
+    }
+  sim.backend().upload(st);
+  for (int s = 0; s < 150; ++s) sim.step();
+  const auto sand = sand_m(sim.state());
+  // Mean over the rows (the scene is uniform in y).
+  auto at = [&](int x) {
+    double m = 0;
+    for (int y = 0; y < ny; ++y) m += sand[static_cast<size_t>(y) * nx + x];
+    return m / ny;
+  };
+  EchoProfile p{0, 0, 0};
+  int first = foot - 1;
+  while (first > foot - 60 && at(first) < 0.1) --first;
+  p.gap_m = foot - 1 - first;
+  for (int x = foot - 60; x < foot; ++x)
+    if (at(x) > p.crest_sand) {
+      p.crest_sand = at(x);
+      p.crest_m = foot - x - 0.5;
+    }
+  return p;
+}
+
+TEST(Behaviour, EchoDuneFormsUpwindOfACliffBehindASandFreeGap) {
+  const double cliff_m = 8;
+  const EchoProfile with = echo_profile(true), without = echo_profile(false);
+  std::printf("echo dunes on: gap %.1f m, crest %.1f m upwind (%.2f m of sand); off: gap %.1f m, "
+              "crest %.1f m (%.2f m); cliff %.0f m\n",
+              with.gap_m, with.crest_m, with.crest_sand, without.gap_m, without.crest_m,
+              without.crest_sand, cliff_m);
+  RecordProperty("gap_m", std::to_string(with.gap_m));
+  RecordProperty("crest_m", std::to_string(with.crest_m));
+  // The gap is of the order of the cliff height (erosion cells reach one
+  // cliff height; avalanching of the dune's lee may creep into it).
+  EXPECT_GE(with.gap_m, 0.5 * cliff_m);
+  EXPECT_LE(with.gap_m, 1.5 * cliff_m);
+  // The dune stands beyond the gap, within the sticky zone (3 H).
+  EXPECT_GT(with.crest_m, with.gap_m);
+  EXPECT_LE(with.crest_m, 3 * cliff_m + 2);
+  EXPECT_GT(with.crest_sand, 0.5) << "no dune grew";
+  // Without echo dunes nothing keeps the foot bare.
+  EXPECT_LT(without.gap_m, 0.25 * cliff_m);
+}
+
 }  // namespace
 }  // namespace erg::test

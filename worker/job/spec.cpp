@@ -367,6 +367,14 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
     out.push_back("model.shadow_radius_m = " + num(m.shadow_radius_m()) + " m is " +
                   num(m.shadow_radius_m() / l) + " cells at domain.cell_size_m = " + num(l) +
                   " m; allowed shadow_radius_m <= " + num(kMaxShadowCells * l) + " m (128 cells)");
+  if (m.echo_dunes() && m.echo_reach_m() > kMaxShadowCells * l)
+    out.push_back("model.echo_reach_m = " + num(m.echo_reach_m()) + " m is " +
+                  num(m.echo_reach_m() / l) + " cells at domain.cell_size_m = " + num(l) +
+                  " m; allowed echo_reach_m <= " + num(kMaxShadowCells * l) + " m (128 cells)");
+  if (m.echo_sticky_ratio() < m.echo_gap_ratio())
+    out.push_back("model.echo_sticky_ratio = " + num(m.echo_sticky_ratio()) +
+                  " is below model.echo_gap_ratio = " + num(m.echo_gap_ratio()) +
+                  "; allowed echo_sticky_ratio >= echo_gap_ratio");
   if (m.shadow_angle_min_deg() >= m.shadow_angle_max_deg())
     out.push_back("model.shadow_angle_min_deg = " + num(m.shadow_angle_min_deg()) +
                   " must be below model.shadow_angle_max_deg = " + num(m.shadow_angle_max_deg()));

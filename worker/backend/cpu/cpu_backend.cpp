@@ -25,6 +25,7 @@ CpuBackend::CpuBackend(const Model& model, int threads, dist::Exchange& ex)
   wind_x_.reset(g_);
   wind_y_.reset(g_);
   shadow_.reset(g_);
+  echo_.reset(g_);
   landed_.reset(g_);
   reptation_.reset(g_);
   height_units_.reset(g_);

@@ -79,6 +79,7 @@ class CpuBackend final : public Backend {
   // derived each step
   Field<float> height_m_;  // b + s in metres, halo filled for the shadow march
   Field<float> wind_x_, wind_y_, shadow_;
+  Field<float> echo_;  // echo-dune classification r_e (stages/echo_dunes.h); 0 when off
   Field<units_t> landed_;        // saltation scatter target (halo for the hop reach)
   Field<float> reptation_;       // s_r
   Field<units_t> height_units_;  // b + s, for reptation

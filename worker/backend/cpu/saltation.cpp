@@ -17,20 +17,21 @@ namespace {
 // Row kernels live outside the OpenMP regions, with restrict-qualified
 // outputs, so that GCC vectorises them (it does not inside the regions).
 void lift_row(units_t* __restrict s, units_t* __restrict air, const float* sh, const float* v,
-              const float* wx, const float* wy, const TileGeom& g, int y, std::uint64_t seed,
-              std::uint64_t step, const saltation::Params& p) {
+              const float* wx, const float* wy, const float* echo, const TileGeom& g, int y,
+              std::uint64_t seed, std::uint64_t step, const saltation::Params& p) {
   const int nx = g.nx;
   if (p.stochastic) {
     for (int x = 0; x < nx; ++x) {
       const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLift).v[0]);
       const units_t q =
-          saltation::lift_stochastic(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), u, p);
+          saltation::lift_stochastic(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), u, p, echo[x]);
       s[x] -= q;
       air[x] += q;
     }
   } else {
     for (int x = 0; x < nx; ++x) {
-      const units_t q = saltation::lift_expected(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), p);
+      const units_t q =
+          saltation::lift_expected(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), p, echo[x]);
       s[x] -= q;
       air[x] += q;
     }
@@ -40,8 +41,9 @@ void lift_row(units_t* __restrict s, units_t* __restrict air, const float* sh, c
 // Returns whether any bedrock was abraded.
 bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
                 units_t* __restrict air, const float* sh, const float* v, const float* r,
-                const float* wx, const float* wy, float* __restrict sr, const TileGeom& g, int y,
-                std::uint64_t seed, std::uint64_t step, const saltation::Params& p) {
+                const float* wx, const float* wy, const float* echo, float* __restrict sr,
+                const TileGeom& g, int y, std::uint64_t seed, std::uint64_t step,
+                const saltation::Params& p) {
   const int nx = g.nx;
   units_t abraded = 0;
   if (p.stochastic) {
@@ -49,8 +51,8 @@ bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
       const float u =
           in[x] > 0 ? u01(random4(seed, step, g.global_index(x, y), RandomStream::kDeposit).v[0])
                     : 0.0f;
-      const saltation::Impact im =
-          saltation::impact(in[x], s[x], sh[x], v[x], r[x], length(Vec2{wx[x], wy[x]}), u, p);
+      const saltation::Impact im = saltation::impact(in[x], s[x], sh[x], v[x], r[x],
+                                                     length(Vec2{wx[x], wy[x]}), u, p, echo[x]);
       s[x] += im.deposited + im.abraded;
       b[x] -= im.abraded;
       air[x] = im.bounced;
@@ -59,8 +61,8 @@ bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
     }
   } else {
     for (int x = 0; x < nx; ++x) {
-      const saltation::Impact im =
-          saltation::impact(in[x], s[x], sh[x], v[x], r[x], length(Vec2{wx[x], wy[x]}), 0.0f, p);
+      const saltation::Impact im = saltation::impact(in[x], s[x], sh[x], v[x], r[x],
+                                                     length(Vec2{wx[x], wy[x]}), 0.0f, p, echo[x]);
       s[x] += im.deposited + im.abraded;
       b[x] -= im.abraded;
       air[x] = im.bounced;
@@ -152,7 +154,7 @@ void CpuBackend::saltation(std::int64_t step) {
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y)
     lift_row(sand_.row(y), airborne_.row(y), shadow_.row(y), vegetation_.row(y), wind_x_.row(y),
-             wind_y_.row(y), g_, y, seed, ustep, p);
+             wind_y_.row(y), echo_.row(y), g_, y, seed, ustep, p);
 
   // (2) Scatter one hop downwind into `landed_` (owned + ghosts). Rows are cut
   // into bands taller than twice the hop reach; even bands run in parallel,
@@ -203,7 +205,8 @@ void CpuBackend::saltation(std::int64_t step) {
   for (int y = 0; y < g_.ny; ++y)
     abraded = impact_row(landed_.row(y), sand_.row(y), bedrock_.row(y), airborne_.row(y),
                          shadow_.row(y), vegetation_.row(y), resistance_.row(y), wind_x_.row(y),
-                         wind_y_.row(y), reptation_.row(y), g_, y, seed, ustep, p) ||
+                         wind_y_.row(y), echo_.row(y), reptation_.row(y), g_, y, seed, ustep,
+                         p) ||
               abraded;
   if (abraded) bedrock_changed_ = true;
 }

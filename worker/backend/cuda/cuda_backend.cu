@@ -265,6 +265,7 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
   wind_x_.reset(n);
   wind_y_.reset(n);
   shadow_.reset(n);
+  echo_.reset(n);
   landed_.reset(n);
   reptation_.reset(n);
   tan_l_.reset(n);
