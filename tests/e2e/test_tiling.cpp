@@ -56,7 +56,8 @@ void write(const std::string& path, const std::string& text) {
 }
 
 // Every stage and coupling on: bedrock relief, patches, vegetation,
-// resistance, obstacles across tile edges, a wind rose, five kinds of events
+// resistance, obstacles across tile edges, echo dunes in front of them, a
+// wind rose, five kinds of events
 // (an obstacle built and one cleared), abrasion turning rock into sand,
 // bedrock avalanching. 120 x 96 cells: 6 tiles of 40 x 48 still hold
 // the halo of 12 avalanching iterations (25 cells).
@@ -79,7 +80,8 @@ std::string job(const std::string& transport) {
             {"step": 15, "wind": {"constant": {"speed_mps": 7, "direction_deg": 120}}},
             {"step": 18, "add_obstacle": {"height_m": 2, "rect": {"x_m": 36, "y_m": 4, "size_x_m": 8, "size_y_m": 3}}},
             {"step": 25, "remove_obstacle": {"disk": {"x_m": 40, "y_m": 48, "radius_m": 3}}}],
- "model": {"abrasion_k": 0.05, "avalanche_iterations": 12, "bedrock_to_sand": true},
+ "model": {"abrasion_k": 0.05, "avalanche_iterations": 12, "bedrock_to_sand": true,
+           "echo_dunes": true, "echo_reach_m": 16},
  "transport": ")" +
          transport + R"(",
  "run": {"steps": 30, "snapshot_every": 10, "checkpoint_every": 10}})";
