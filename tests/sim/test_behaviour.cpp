@@ -386,10 +386,11 @@ EchoProfile echo_profile(bool echo) {
 TEST(Behaviour, EchoDuneFormsUpwindOfACliffBehindASandFreeGap) {
   const double cliff_m = 8;
   const EchoProfile with = echo_profile(true), without = echo_profile(false);
-  std::printf("echo dunes on: gap %.1f m, crest %.1f m upwind (%.2f m of sand); off: gap %.1f m, "
-              "crest %.1f m (%.2f m); cliff %.0f m\n",
-              with.gap_m, with.crest_m, with.crest_sand, without.gap_m, without.crest_m,
-              without.crest_sand, cliff_m);
+  std::printf(
+      "echo dunes on: gap %.1f m, crest %.1f m upwind (%.2f m of sand); off: gap %.1f m, "
+      "crest %.1f m (%.2f m); cliff %.0f m\n",
+      with.gap_m, with.crest_m, with.crest_sand, without.gap_m, without.crest_m, without.crest_sand,
+      cliff_m);
   RecordProperty("gap_m", std::to_string(with.gap_m));
   RecordProperty("crest_m", std::to_string(with.crest_m));
   // The gap is of the order of the cliff height (erosion cells reach one

@@ -154,7 +154,8 @@ TEST_P(ExactnessObstacles, ConservedNoSandInsideAndThreadInvariant) {
     ],
     "model": {"abrasion_k": 0.05, "avalanche_iterations": 20, "bedrock_to_sand": true,
               "echo_dunes": true, "echo_reach_m": 12},
-    "transport": ")" + GetParam() + R"(",
+    "transport": ")" + GetParam() +
+                           R"(",
     "seed": 5
   })";
   auto run = [&](int threads) {

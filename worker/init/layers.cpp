@@ -196,8 +196,8 @@ std::vector<obstacles::Shape> obstacle_shapes(const erg::v1::Obstacle& o, double
   const auto h = static_cast<float>(o.height_m());
   switch (o.shape_case()) {
     case erg::v1::Obstacle::kDisk:
-      out.push_back({obstacles::kDisk, o.disk().x_m(), o.disk().y_m(), 0, 0, o.disk().radius_m(),
-                     h, lx_m, ly_m});
+      out.push_back({obstacles::kDisk, o.disk().x_m(), o.disk().y_m(), 0, 0, o.disk().radius_m(), h,
+                     lx_m, ly_m});
       break;
     case erg::v1::Obstacle::kRect:
       out.push_back({obstacles::kRect, o.rect().x_m(), o.rect().y_m(), o.rect().size_x_m(),

@@ -516,7 +516,8 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
   const bool has_airborne = have[0] != 0, has_shadow = have[1] != 0, has_obstacles = have[2] != 0;
 
   SizeBound bound;
-  for (const detail::SnapshotLayer& l : detail::snapshot_layers(f, has_airborne, has_shadow, has_obstacles)) {
+  for (const detail::SnapshotLayer& l :
+       detail::snapshot_layers(f, has_airborne, has_shadow, has_obstacles)) {
     bound.add_dataset(meta.nx, meta.ny, l.components, sizeof(float), chunk_nx, chunk_ny);
   }
   for (const std::string* s :
@@ -532,7 +533,8 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
     co.agree();
     TileWriter w{co, file, dxpl.get(), path, slab, meta.nx, meta.ny, chunk_nx, chunk_ny};
     // The optional layers as agreed above (a rank without cells may pass null).
-    for (const detail::SnapshotLayer& l : detail::snapshot_layers(f, has_airborne, has_shadow, has_obstacles)) {
+    for (const detail::SnapshotLayer& l :
+         detail::snapshot_layers(f, has_airborne, has_shadow, has_obstacles)) {
       w.write(l.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, l.components, l.data,
               detail::kSnapshotDeflate);
     }

@@ -126,7 +126,8 @@ void write_snapshot(const std::string& path, const SnapshotMeta& meta, const Sna
     Hid file = detail::create_hdf5_in_memory(out);
     const hid_t fid = file.get();
     const hsize_t ny = static_cast<hsize_t>(meta.ny), nx = static_cast<hsize_t>(meta.nx);
-    for (const detail::SnapshotLayer& l : detail::snapshot_layers(f, f.airborne, f.shadow, f.obstacles)) {
+    for (const detail::SnapshotLayer& l :
+         detail::snapshot_layers(f, f.airborne, f.shadow, f.obstacles)) {
       std::vector<hsize_t> dims = {ny, nx};
       if (l.components > 1) dims.push_back(static_cast<hsize_t>(l.components));
       detail::write_dataset(fid, l.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, dims, l.data,

@@ -47,8 +47,7 @@ TileState initial_state(const erg::v1::JobSpec& spec, const Model& model,
       s.resistance,
       init::generate_layer(L.resistance(), LayerKind::kResistance, spec, model.tile, base_dir),
       [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
-  set_owned_cells(s.obstacles,
-                  init::generate_obstacles(L.obstacles(), spec, model.tile, base_dir),
+  set_owned_cells(s.obstacles, init::generate_obstacles(L.obstacles(), spec, model.tile, base_dir),
                   [](double o) { return static_cast<float>(o); });
   // Obstacles hold no sand [BR04 4]: initial sand inside them is dropped.
   for (int y = 0; y < model.tile.ny; ++y)

@@ -26,7 +26,7 @@ namespace erg::echo_dunes {
 
 struct Params {
   bool on;
-  int steps;           // cells searched downwind
+  int steps;            // cells searched downwind
   float rise_per_cell;  // tan(cliff angle) * l
   float cell_m;         // l
   float gap_ratio, sticky_ratio;

@@ -46,8 +46,8 @@ ERG_HD float echo_deposition(float beta, float echo) {
 
 // (1) Lift: eps_S (1 - sigma)(1 - v), at most the sand present [N24 eq. 5].
 // Still air lifts nothing (a hop of length 0 would only churn the cell).
-ERG_HD units_t lift_expected(units_t sand, float shadow, float v, float wind_speed,
-                             const Params& p, float echo = 0.0f) {
+ERG_HD units_t lift_expected(units_t sand, float shadow, float v, float wind_speed, const Params& p,
+                             float echo = 0.0f) {
   const units_t want =
       floor_units(p.slab_units * echo_lift_factor(vegetation::lift_factor(shadow, v), echo, p));
   return wind_speed > 0.0f ? min_of(want, sand) : 0;
@@ -121,10 +121,10 @@ ERG_HD Impact impact(units_t landed, units_t sand, float shadow, float v, float 
   const bool has_slab = p.slab_units > 0.0f;
   const float ramp = min_of(static_cast<float>(sand) / (has_slab ? p.slab_units : 1.0f), 1.0f);
   const float sand_fraction = (p.stochastic || !has_slab) ? (sand > 0 ? 1.0f : 0.0f) : ramp;
-  const float beta = echo_deposition(
-      vegetation::deposition_probability(shadow, sand_fraction, v, p.deposit_on_sand,
-                                         p.deposit_on_bedrock),
-      echo);
+  const float beta =
+      echo_deposition(vegetation::deposition_probability(shadow, sand_fraction, v,
+                                                         p.deposit_on_sand, p.deposit_on_bedrock),
+                      echo);
   const units_t expected = min_of(floor_units(static_cast<float>(landed) * beta), landed);
   Impact r;
   r.deposited = p.stochastic ? ((u < beta) ? landed : 0) : expected;

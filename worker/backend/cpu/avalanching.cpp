@@ -224,12 +224,11 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
         const int x0 = std::max(s * kSegment - widest, -grow1);
         const int x1 = std::min((s + 1) * kSegment - widest, nx + grow1);
         if (x0 >= x1) continue;
-        positive[k] = bedrock ? fraction_segment<true>(h_a_.row(y), nullptr, tan_b, nullptr,
-                                                       obstacles_.row(y), kc, st, x0, x1,
-                                                       frac_.row(y))
-                              : fraction_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f,
-                                                        sand_.row(y), obstacles_.row(y), kc, st,
-                                                        x0, x1, frac_.row(y));
+        positive[k] =
+            bedrock ? fraction_segment<true>(h_a_.row(y), nullptr, tan_b, nullptr,
+                                             obstacles_.row(y), kc, st, x0, x1, frac_.row(y))
+                    : fraction_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f, sand_.row(y),
+                                              obstacles_.row(y), kc, st, x0, x1, frac_.row(y));
         any_positive = any_positive || positive[k];
       }
     }

@@ -112,7 +112,7 @@ total_t CpuBackend::apply_sand_brush(const events::Brush& b) {
     const float* o = obstacles_.row(y);
     for (int x = 0; x < g_.nx; ++x) {
       units_t d = events::brush_units(b, centre_x(g_, x), centre_y(g_, y));
-      if (d < -s[x]) d = -s[x];                    // never below bare ground
+      if (d < -s[x]) d = -s[x];                 // never below bare ground
       if (obstacles::is_obstacle(o[x])) d = 0;  // obstacles hold no sand
       s[x] += d;
       change += d;

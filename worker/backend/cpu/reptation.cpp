@@ -52,7 +52,8 @@ void CpuBackend::reptation() {
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = -e; y < g_.ny + e; ++y)
     reptation_row(height_units_.row(y) - e, sand_.row(y) - e, reptation_.row(y) - e,
-                  obstacles_.row(y) - e, sand_next_.row(y) - e, g_.nx + 2 * e, g_.pitch, g_.cell_m, m_.reptation_k);
+                  obstacles_.row(y) - e, sand_next_.row(y) - e, g_.nx + 2 * e, g_.pitch, g_.cell_m,
+                  m_.reptation_k);
   sand_.swap(sand_next_);
 }
 

@@ -2,13 +2,12 @@
 // one hop downwind, reverse halo accumulation, deposition/bounce/abrasion.
 #include "stages/saltation.h"
 
-#include "stages/obstacles.h"
-
 #include <algorithm>
 #include <vector>
 
 #include "backend/cpu/cpu_backend.h"
 #include "core/philox.h"
+#include "stages/obstacles.h"
 
 namespace erg::cpu {
 
@@ -113,18 +112,18 @@ void scatter_row_stochastic(units_t* air, const float* wx, const float* wy, cons
 // With obstacles within reach: each hop walks its path and never lands in an
 // obstacle (stages/obstacles.h, [BR04 4.1]); both transport modes, scalar.
 // Without any in reach the result is exactly that of the rows above.
-void scatter_row_obstacles(units_t* air, const float* wx, const float* wy, const TileGeom& g,
-                           int y, std::uint64_t seed, std::uint64_t step,
-                           const saltation::Params& p, const float* o_base,
-                           Field<units_t>& landed) {
+void scatter_row_obstacles(units_t* air, const float* wx, const float* wy, const TileGeom& g, int y,
+                           std::uint64_t seed, std::uint64_t step, const saltation::Params& p,
+                           const float* o_base, Field<units_t>& landed) {
   const long pitch = g.pitch;
   for (int x = 0; x < g.nx; ++x) {
     const units_t a = air[x];
     if (a == 0) continue;
     air[x] = 0;
     const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, p);
-    const obstacles::Path path = obstacles::hop_path(
-        o_base, pitch, x, y, static_cast<float>(L.x0 - x) + L.fx, static_cast<float>(L.y0 - y) + L.fy);
+    const obstacles::Path path =
+        obstacles::hop_path(o_base, pitch, x, y, static_cast<float>(L.x0 - x) + L.fx,
+                            static_cast<float>(L.y0 - y) + L.fy);
     if (p.stochastic) {
       const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLanding).v[0]);
       const int k = saltation::pick_corner(L.fx, L.fy, u);
@@ -205,8 +204,7 @@ void CpuBackend::saltation(std::int64_t step) {
   for (int y = 0; y < g_.ny; ++y)
     abraded = impact_row(landed_.row(y), sand_.row(y), bedrock_.row(y), airborne_.row(y),
                          shadow_.row(y), vegetation_.row(y), resistance_.row(y), wind_x_.row(y),
-                         wind_y_.row(y), echo_.row(y), reptation_.row(y), g_, y, seed, ustep,
-                         p) ||
+                         wind_y_.row(y), echo_.row(y), reptation_.row(y), g_, y, seed, ustep, p) ||
               abraded;
   if (abraded) bedrock_changed_ = true;
 }

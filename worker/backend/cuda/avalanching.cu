@@ -35,8 +35,8 @@ __global__ void level0_kernel(TileGeom g, int grow, bool ghosts_only, bool bedro
   if (!grown_cell(g, grow, x, y)) return;
   if (ghosts_only && x >= 0 && x < g.nx && y >= 0 && y < g.ny) return;
   const std::size_t i = g.at(x, y);
-  h[i] = obstacles::avalanche_height(
-      units_to_m(bedrock_only ? bedrock[i] : bedrock[i] + sand[i]), ob[i]);
+  h[i] = obstacles::avalanche_height(units_to_m(bedrock_only ? bedrock[i] : bedrock[i] + sand[i]),
+                                     ob[i]);
 }
 
 // Pass 1: fraction and total sent by every donor (the complete donor(), with

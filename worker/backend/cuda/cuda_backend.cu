@@ -179,7 +179,7 @@ __global__ void sand_brush_kernel(TileGeom g, events::Brush b, units_t* sand, co
   total_t change = 0;
   for (int x = static_cast<int>(threadIdx.x); x < g.nx; x += kRowThreads) {
     units_t d = events::brush_units(b, centre_x(g, x), centre_y(g, y));
-    if (d < -s[x]) d = -s[x];                    // never below bare ground
+    if (d < -s[x]) d = -s[x];                 // never below bare ground
     if (obstacles::is_obstacle(o[x])) d = 0;  // obstacles hold no sand
     s[x] += d;
     change += d;

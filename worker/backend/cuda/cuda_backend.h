@@ -239,7 +239,7 @@ class CudaBackend final : public Backend {
   // derived each step
   DeviceBuffer<float> height_m_;  // b + s in metres, halo filled for the shadow march
   DeviceBuffer<float> wind_x_, wind_y_, shadow_;
-  DeviceBuffer<float> echo_;  // echo-dune classification r_e (stages/echo_dunes.h); 0 when off
+  DeviceBuffer<float> echo_;       // echo-dune classification r_e (stages/echo_dunes.h); 0 when off
   DeviceBuffer<units_t> landed_;   // saltation scatter target (halo for the hop reach)
   DeviceBuffer<float> reptation_;  // s_r
   DeviceBuffer<float> tan_l_;      // tan(repose(v)) * l for sand

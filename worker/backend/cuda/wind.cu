@@ -30,7 +30,8 @@ __global__ void heights_kernel(TileGeom g, const units_t* bedrock, const units_t
 __global__ void coarse_sum_kernel(TileGeom g, CoarseGrid c, int tile_cnx, const units_t* bedrock,
                                   const units_t* sand, const float* ob, double* coarse_h) {
   __shared__ total_t red[kCoarseThreads];
-  const int I = static_cast<int>(blockIdx.x % tile_cnx), J = static_cast<int>(blockIdx.x / tile_cnx);
+  const int I = static_cast<int>(blockIdx.x % tile_cnx),
+            J = static_cast<int>(blockIdx.x / tile_cnx);
   const long long cells = static_cast<long long>(c.cx) * c.cy;
   total_t sum = 0;
   for (long long t = threadIdx.x; t < cells; t += kCoarseThreads) {
