@@ -56,14 +56,16 @@ void write(const std::string& path, const std::string& text) {
 }
 
 // Every stage and coupling on: bedrock relief, patches, vegetation,
-// resistance, obstacles across tile edges, echo dunes in front of them, a
+// resistance, obstacles across tile edges, echo dunes in front of a steep
+// bedrock mesa across tile edges, a
 // wind rose, five kinds of events
 // (an obstacle built and one cleared), abrasion turning rock into sand,
 // bedrock avalanching. 120 x 96 cells: 6 tiles of 40 x 48 still hold
 // the halo of 12 avalanching iterations (25 cells).
 std::string job(const std::string& transport) {
   return R"({"domain": {"nx": 120, "ny": 96, "cell_size_m": 1.0},
- "layers": {"bedrock": {"fbm": {"amplitude": 3, "wavelength_m": 48, "octaves": 3}},
+ "layers": {"bedrock": {"fbm": {"amplitude": 3, "wavelength_m": 48, "octaves": 3},
+                       "piles": [{"x_m": 80, "y_m": 30, "height": 6, "radius_m": 10, "shape": "CYLINDER"}]},
             "sand": {"patches": {"coverage": 0.4, "radius_m": 8, "height": 3, "falloff_m": 3}},
             "vegetation": {"fbm": {"amplitude": 0.6, "offset": 0.1, "wavelength_m": 40, "octaves": 2}},
             "resistance": {"fbm": {"amplitude": 0.5, "offset": 0.5, "wavelength_m": 30, "octaves": 2}},

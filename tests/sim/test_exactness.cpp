@@ -126,8 +126,8 @@ TEST(Exactness, EventsAreAccountedToTheUnit) {
 }
 
 // Obstacles (stages/obstacles.h): a rock, a building, a road and, by events,
-// a wall built on sand and later removed; echo dunes on (the obstacles are
-// cliffs for them). Over 250 steps in both transport
+// a wall built on sand and later removed; echo dunes on, in front of a
+// steep bedrock mesa. Over 250 steps in both transport
 // modes with abrasion on: sand + bedrock stays exact (what the events removed
 // is in the ledger), no sand ever lies or flies inside an obstacle, and 1, 2
 // and 4 threads give the same bits.
@@ -137,7 +137,8 @@ TEST_P(ExactnessObstacles, ConservedNoSandInsideAndThreadInvariant) {
   const std::string json = R"({
     "domain": {"nx": 72, "ny": 40, "cell_size_m": 1.0},
     "layers": {
-      "bedrock": {"fbm": {"amplitude": 3, "wavelength_m": 40, "octaves": 3}},
+      "bedrock": {"fbm": {"amplitude": 3, "wavelength_m": 40, "octaves": 3},
+                  "piles": [{"x_m": 50, "y_m": 10, "height": 6, "radius_m": 7, "shape": "CYLINDER"}]},
       "sand": {"patches": {"coverage": 0.5, "radius_m": 6, "height": 2.5, "falloff_m": 3},
                "constant": 0.3},
       "obstacles": {"shapes": [

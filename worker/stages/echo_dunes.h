@@ -15,8 +15,10 @@
 // eps (f + k_e) from erosion cells and eps f (1 - r_e) from sticky ones, and
 // deposits nothing on erosion cells and beta + r_e (1 - beta) on sticky ones
 // ([N24] 3.6: "multiplied by 0.5 if the cell is sticky and we add k_e = 1 if
-// the cell is an erosion cell"). Obstacle heights count as terrain here too,
-// so walls and buildings get their echo dunes.
+// the cell is an erosion cell"). Cliffs are terrain (bedrock and sand):
+// obstacle heights are taken out of the heights the wind sees, because sand
+// stopped by an obstacle lands at its windward foot (stages/obstacles.h),
+// which as an erosion cell would never let it settle.
 #pragma once
 
 #include "core/hd.h"
@@ -34,10 +36,12 @@ struct Params {
 };
 
 // r_e of local cell (x, y): -1 erosion, > 0 sticky, 0 neither. `h_base` is
-// the halo-filled height field at local cell (0, 0). Sample offsets are
+// the halo-filled height field the wind sees and `o_base` the obstacle
+// heights, both at local cell (0, 0). Sample offsets are
 // rounded from the step alone, never from the cell's position, so every
 // tiling samples the same cells.
-ERG_HD float classify(const float* h_base, long pitch, int x, int y, Vec2 w, const Params& p) {
+ERG_HD float classify(const float* h_base, const float* o_base, long pitch, int x, int y, Vec2 w,
+                      const Params& p) {
   const float speed = length(w);
   if (!p.on || !(speed > 0.0f) || p.steps <= 0) return 0.0f;
   const float ux = w.x / speed, uy = w.y / speed;
@@ -45,7 +49,8 @@ ERG_HD float classify(const float* h_base, long pitch, int x, int y, Vec2 w, con
     const float fj = static_cast<float>(j);
     const int dx = static_cast<int>(floorf(fj * ux + 0.5f));
     const int dy = static_cast<int>(floorf(fj * uy + 0.5f));
-    return h_base[static_cast<long>(y + dy) * pitch + (x + dx)];
+    const long i = static_cast<long>(y + dy) * pitch + (x + dx);
+    return h_base[i] - o_base[i];  // the terrain, without obstacles
   };
   float prev = h(0);
   for (int j = 1; j <= p.steps; ++j) {

@@ -17,11 +17,12 @@ __global__ void shadow_kernel(TileGeom g, wind_shadow::Params p, const float* h_
 }
 
 __global__ void echo_kernel(TileGeom g, echo_dunes::Params p, const float* h_base,
-                            const float* wind_x, const float* wind_y, float* echo) {
+                            const float* o_base, const float* wind_x, const float* wind_y,
+                            float* echo) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
-  echo[i] = echo_dunes::classify(h_base, g.pitch, x, y, {wind_x[i], wind_y[i]}, p);
+  echo[i] = echo_dunes::classify(h_base, o_base, g.pitch, x, y, {wind_x[i], wind_y[i]}, p);
 }
 
 }  // namespace
@@ -33,7 +34,7 @@ void CudaBackend::shadow() {
              wind_x_.get(), wind_y_.get(), shadow_.get());
   if (m_.echo.on)
     ERG_LAUNCH(echo_kernel, l.grid, l.block, g_, m_.echo, height_m_.get() + g_.at(0, 0),
-               wind_x_.get(), wind_y_.get(), echo_.get());
+               obstacles_.get() + g_.at(0, 0), wind_x_.get(), wind_y_.get(), echo_.get());
 }
 
 }  // namespace erg::gpu
