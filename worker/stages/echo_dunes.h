@@ -18,7 +18,9 @@
 // the cell is an erosion cell"). Cliffs are terrain (bedrock and sand):
 // obstacle heights are taken out of the heights the wind sees, because sand
 // stopped by an obstacle lands at its windward foot (stages/obstacles.h),
-// which as an erosion cell would never let it settle.
+// which as an erosion cell would never let it settle; and a cell's search
+// ends at the first obstacle downwind (a cliff behind it is hidden from the
+// cell, and the foot of an obstacle must stay a place where sand settles).
 #pragma once
 
 #include "core/hd.h"
@@ -35,6 +37,8 @@ struct Params {
   float stickiness;
 };
 
+inline constexpr float kBlocked = 1.0e30f;
+
 // r_e of local cell (x, y): -1 erosion, > 0 sticky, 0 neither. `h_base` is
 // the halo-filled height field the wind sees and `o_base` the obstacle
 // heights, both at local cell (0, 0). Sample offsets are
@@ -45,16 +49,20 @@ ERG_HD float classify(const float* h_base, const float* o_base, long pitch, int 
   const float speed = length(w);
   if (!p.on || !(speed > 0.0f) || p.steps <= 0) return 0.0f;
   const float ux = w.x / speed, uy = w.y / speed;
+  // The terrain (without obstacles) j cells downwind; the search ends at an
+  // obstacle (-kBlocked; see above).
   auto h = [&](int j) {
     const float fj = static_cast<float>(j);
     const int dx = static_cast<int>(floorf(fj * ux + 0.5f));
     const int dy = static_cast<int>(floorf(fj * uy + 0.5f));
     const long i = static_cast<long>(y + dy) * pitch + (x + dx);
-    return h_base[i] - o_base[i];  // the terrain, without obstacles
+    return o_base[i] > 0.0f ? -kBlocked : h_base[i] - o_base[i];
   };
   float prev = h(0);
+  if (prev <= -kBlocked) return 0.0f;  // an obstacle holds no sand anyway
   for (int j = 1; j <= p.steps; ++j) {
     const float hj = h(j);
+    if (hj <= -kBlocked) return 0.0f;
     if (hj - prev > p.rise_per_cell) {
       // The foot of the cliff is j - 1 cells downwind; climb while steep.
       const float foot = prev;
