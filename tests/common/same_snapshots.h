@@ -20,6 +20,7 @@ inline void expect_same_snapshot(const std::string& a, const std::string& b,
   EXPECT_TRUE(sa.wind == sb.wind) << what << ": /wind";
   EXPECT_TRUE(sa.airborne == sb.airborne) << what << ": /airborne";
   EXPECT_TRUE(sa.shadow == sb.shadow) << what << ": /shadow";
+  EXPECT_TRUE(sa.obstacles == sb.obstacles) << what << ": /obstacles";
   EXPECT_EQ(sa.meta.sand_units_total, sb.meta.sand_units_total) << what;
   EXPECT_EQ(sa.meta.bedrock_units_total, sb.meta.bedrock_units_total) << what;
   EXPECT_EQ(sa.meta.airborne_units_total, sb.meta.airborne_units_total) << what;

@@ -57,7 +57,8 @@ const char* kSmallJob = R"({
   "layers": {
     "bedrock": {"fbm": {"amplitude": 2, "wavelength_m": 64, "octaves": 2}},
     "sand": {"patches": {"coverage": 0.3, "radius_m": 10, "height": 2, "falloff_m": 4}},
-    "vegetation": {"uniform": {"min": 0, "max": 0.2}}
+    "vegetation": {"uniform": {"min": 0, "max": 0.2}},
+    "obstacles": {"shapes": [{"height_m": 3, "disk": {"x_m": 60, "y_m": 40, "radius_m": 8}}]}
   },
   "wind": {"constant": {"speed_mps": 5, "direction_deg": 30}},
   "events": [{"step": 5, "sand": {"x_m": 60, "y_m": 40, "radius_m": 12, "falloff_m": 4, "height": 2}}],
@@ -107,8 +108,14 @@ TEST(Cli, RunWritesTheDocumentedOutputs) {
 import h5py, numpy as np, sys
 f = h5py.File(sys.argv[1], 'r')
 c = h5py.File(sys.argv[2], 'r')
-for n in ('bedrock', 'sand', 'vegetation'):
+for n in ('bedrock', 'sand', 'vegetation', 'airborne', 'shadow', 'obstacles'):
     assert f[n].shape == (48, 64) and f[n].dtype == np.float32, n
+# The obstacle disk (3 m high, radius 8 m at (60 m, 40 m)) holds no sand,
+# and the checkpoint carries the same mask.
+o = f['obstacles'][:]
+assert o.max() == 3 and 40 <= (o > 0).sum() <= 60, (o.max(), (o > 0).sum())
+assert (f['sand'][:][o > 0] == 0).all() and (f['airborne'][:][o > 0] == 0).all()
+assert (c['obstacles'][:] == o).all()
 assert f['wind'].shape == (48, 64, 2) and f['wind'].dtype == np.float32
 for a in ('step', 'time_days', 'cell_size_m', 'nx', 'ny', 'job_spec', 'erg_version', 'unit_m',
           'sand_units_total', 'bedrock_units_total'):
@@ -266,7 +273,7 @@ TEST_P(Example, Runs) {
 }
 INSTANTIATE_TEST_SUITE_P(Examples, Example,
                          ::testing::Values("barchans", "transverse", "linear", "star", "nabkha",
-                                           "yardangs"));
+                                           "yardangs", "echo_dune"));
 
 }  // namespace
 

@@ -57,23 +57,34 @@ void write(const std::string& path, const std::string& text) {
 }
 
 // Every stage and coupling on: bedrock relief, patches, vegetation,
-// resistance, a wind rose, three kinds of events, abrasion turning rock into
-// sand, bedrock avalanching. 120 x 96 cells: 6 tiles of 40 x 48 still hold
+// resistance, obstacles across tile edges, echo dunes in front of a steep
+// bedrock mesa across tile edges, a
+// wind rose, five kinds of events
+// (an obstacle built and one cleared), abrasion turning rock into sand,
+// bedrock avalanching. 120 x 96 cells: 6 tiles of 40 x 48 still hold
 // the halo of 12 avalanching iterations (25 cells).
 std::string job(const std::string& transport) {
   return R"({"domain": {"nx": 120, "ny": 96, "cell_size_m": 1.0},
- "layers": {"bedrock": {"fbm": {"amplitude": 3, "wavelength_m": 48, "octaves": 3}},
+ "layers": {"bedrock": {"fbm": {"amplitude": 3, "wavelength_m": 48, "octaves": 3},
+                       "piles": [{"x_m": 80, "y_m": 30, "height": 6, "radius_m": 10, "shape": "CYLINDER"}]},
             "sand": {"patches": {"coverage": 0.4, "radius_m": 8, "height": 3, "falloff_m": 3}},
             "vegetation": {"fbm": {"amplitude": 0.6, "offset": 0.1, "wavelength_m": 40, "octaves": 2}},
-            "resistance": {"fbm": {"amplitude": 0.5, "offset": 0.5, "wavelength_m": 30, "octaves": 2}}},
+            "resistance": {"fbm": {"amplitude": 0.5, "offset": 0.5, "wavelength_m": 30, "octaves": 2}},
+            "obstacles": {"shapes": [
+              {"height_m": 3, "disk": {"x_m": 40, "y_m": 48, "radius_m": 5}},
+              {"height_m": 5, "rect": {"x_m": 77, "y_m": 60, "size_x_m": 6, "size_y_m": 30}},
+              {"height_m": 0.3, "road": {"points": [{"x_m": 2, "y_m": 90}, {"x_m": 118, "y_m": 40}], "width_m": 2}}]}},
  "wind": {"rose": {"entries": [{"direction_deg": 30, "speed_mps": 6, "probability": 0.6},
                                {"direction_deg": 200, "speed_mps": 4, "probability": 0.4}],
                    "hold_steps": 3}},
  "events": [{"step": 5, "sand": {"x_m": 60, "y_m": 50, "radius_m": 15, "falloff_m": 5, "height": 2}},
             {"step": 8, "vegetation": {"x_m": 10, "y_m": 10, "width_m": 20, "height_m": 30, "density": 0.8}},
             {"step": 12, "bedrock": {"x_m": 100, "y_m": 20, "radius_m": 12, "falloff_m": 4, "height": -3}},
-            {"step": 15, "wind": {"constant": {"speed_mps": 7, "direction_deg": 120}}}],
- "model": {"abrasion_k": 0.05, "avalanche_iterations": 12, "bedrock_to_sand": true},
+            {"step": 15, "wind": {"constant": {"speed_mps": 7, "direction_deg": 120}}},
+            {"step": 18, "add_obstacle": {"height_m": 2, "rect": {"x_m": 36, "y_m": 4, "size_x_m": 8, "size_y_m": 3}}},
+            {"step": 25, "remove_obstacle": {"disk": {"x_m": 40, "y_m": 48, "radius_m": 3}}}],
+ "model": {"abrasion_k": 0.05, "avalanche_iterations": 12, "bedrock_to_sand": true,
+           "echo_dunes": true, "echo_reach_m": 16},
  "transport": ")" +
          transport + R"(",
  "run": {"steps": 30, "snapshot_every": 10, "checkpoint_every": 10}})";
@@ -90,6 +101,8 @@ void expect_same_runs(const std::string& a, const std::string& b,
   for (const auto& s : steps) {
     erg::test::expect_same_snapshot(a + "/snapshots/step_" + s + ".h5",
                                     b + "/snapshots/step_" + s + ".h5", what + " step " + s);
+    EXPECT_FALSE(erg::io::read_snapshot(a + "/snapshots/step_" + s + ".h5").obstacles.empty())
+        << what << " step " << s << ": no /obstacles";
     const std::string ca = a + "/checkpoints/step_" + s + ".h5",
                       cb = b + "/checkpoints/step_" + s + ".h5";
     if (fs::exists(ca) && fs::exists(cb)) {
@@ -100,6 +113,7 @@ void expect_same_runs(const std::string& a, const std::string& b,
       EXPECT_TRUE(ka.airborne_units == kb.airborne_units)
           << what << " step " << s << ": airborne units";
       EXPECT_TRUE(ka.vegetation == kb.vegetation) << what << " step " << s << ": vegetation";
+      EXPECT_TRUE(ka.obstacles == kb.obstacles) << what << " step " << s << ": obstacles";
     }
   }
 }

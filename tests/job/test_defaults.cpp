@@ -50,6 +50,12 @@ const std::map<std::string, double> kModelDefaults = {
     {"avalanche_kc_damped", 0.5},
     {"bedrock_repose_deg", 68},
     {"bedrock_avalanche_iterations", 1},
+    {"echo_cliff_deg", 50},
+    {"echo_reach_m", 30},
+    {"echo_gap_ratio", 1},
+    {"echo_sticky_ratio", 3},
+    {"echo_stickiness", 0.5},
+    {"echo_erosion_k", 1},
 };
 
 TEST(Defaults, ModelParametersGetTheirDocumentedDefaults) {
@@ -65,6 +71,7 @@ TEST(Defaults, ModelParametersGetTheirDocumentedDefaults) {
   EXPECT_EQ(m.deposit_on_bedrock(), 0.4);
   EXPECT_EQ(m.bedrock_repose_deg(), 68);
   EXPECT_FALSE(m.bedrock_to_sand());
+  EXPECT_FALSE(m.echo_dunes());
 
   // Every numeric model field is present after the defaults, with the value
   // of the table above; and the table covers every numeric model field.

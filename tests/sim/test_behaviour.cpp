@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "sim_test_util.h"
@@ -233,6 +234,175 @@ TEST(Behaviour, OppositeWindsOfEqualStrengthKeepAPileInPlace) {
   EXPECT_GT(*std::max_element(s.begin(), s.end()), 1.0);
   (void)nx;
   (void)ny;
+}
+
+// Obstacles [BR04 4.1]: a 4 m wall across the wind on 0.5 m of sand. Sand
+// whose hop meets the wall lands at its windward foot, so sand piles up on
+// the windward side; the wind shadow behind it keeps the lee from being
+// eroded (no lift where sigma = 1), while open ground is stripped; no sand
+// ever enters the wall.
+TEST(Behaviour, SandAccumulatesOnTheWindwardSideOfAWall) {
+  const int nx = 128, ny = 48, steps = 100;
+  Simulation sim(spec_from(R"({
+      "domain": {"nx": 128, "ny": 48, "cell_size_m": 1.0},
+      "layers": {"sand": {"constant": 0.5},
+                 "obstacles": {"shapes": [{"height_m": 4,
+                     "rect": {"x_m": 64, "y_m": 12, "size_x_m": 4, "size_y_m": 24}}]}},
+      "wind": {"constant": {"speed_mps": 6}},
+      "run": {"steps": 100}})"),
+                 ".", cpu_threads(2));
+  long inside = 0;
+  for (int s = 0; s < steps; ++s) {
+    sim.step();
+    if (s % 10 == 9) {
+      const TileState st = sim.state();
+      for (int y = 0; y < ny; ++y)
+        for (int x = 0; x < nx; ++x)
+          if (obstacles::is_obstacle(st.obstacles(x, y)))
+            inside += st.sand(x, y) != 0 || st.airborne(x, y) != 0;
+    }
+  }
+  EXPECT_EQ(inside, 0) << "sand inside the wall";
+  const auto sand = sand_m(sim.state());
+  // Mean thickness in rows [16, 32) (away from the wall's ends), columns [x0, x1).
+  auto band = [&](int x0, int x1) {
+    double sum = 0;
+    for (int y = 16; y < 32; ++y)
+      for (int x = x0; x < x1; ++x) sum += sand[static_cast<size_t>(y) * nx + x];
+    return sum / (16.0 * (x1 - x0));
+  };
+  const double windward = band(56, 64);  // 8 m upwind of the wall
+  const double lee = band(68, 76);       // 8 m downwind
+  const double open = band(10, 50);      // upstream open ground
+  RecordProperty("windward_m", std::to_string(windward));
+  RecordProperty("lee_m", std::to_string(lee));
+  RecordProperty("open_m", std::to_string(open));
+  std::printf("after %d steps: windward %.3f m, lee %.3f m, open ground %.3f m (initially 0.5 m)\n",
+              steps, windward, lee, open);
+  // Every hop that meets the wall ends in front of it: the windward band
+  // gains what the 24 m of wall intercept.
+  EXPECT_GT(windward, 2 * 0.5) << "no accumulation in front of the wall";
+  EXPECT_GT(windward, 3.0 * open) << "the windward side is not where the sand went";
+  // The lee is in the wall's shadow: nothing is lifted there.
+  EXPECT_GE(lee, 0.5) << "the lee of the wall was eroded";
+}
+
+// Wind shadow behind an obstacle [BR04 4.3, N24 eq. 4]: the obstacle height
+// counts as terrain for the shadow. Behind a wall of height H the upwind angle
+// at distance d is about atan(H / d): fully shadowed while H / d > tan 15
+// deg, free beyond H / tan 10 deg (and beyond the 10 m shadow radius).
+TEST(Behaviour, ObstaclesCastAWindShadowThatGrowsWithTheirHeight) {
+  auto shadow_behind = [](double height) {
+    Simulation sim(spec_from(R"({
+        "domain": {"nx": 128, "ny": 32, "cell_size_m": 1.0},
+        "layers": {"obstacles": {"shapes": [{"height_m": )" +
+                             std::to_string(height) + R"(,
+                       "rect": {"x_m": 40, "y_m": 8, "size_x_m": 2, "size_y_m": 16}}]}},
+        "wind": {"constant": {"speed_mps": 5}},
+        "model": {"warp_large_weight": 1, "warp_small_weight": 0, "warp_large_deviation": 0,
+                  "venturi_k": 0},
+        "run": {"steps": 1}})"),
+                   ".", cpu_threads(1));
+    sim.step();
+    std::vector<float> shadow;
+    sim.backend().download_shadow(shadow);
+    const TileState st = sim.state();
+    EXPECT_EQ(units_to_m_d(st.bedrock(60, 16)), 0.0) << "the obstacle went into the bedrock";
+    return shadow;
+  };
+  for (const double h : {1.0, 4.0}) {
+    const auto sh = shadow_behind(h);
+    auto at = [&](int x, int y) { return sh[static_cast<size_t>(y) * 128 + x]; };
+    // Distance from the wall's lee face (x = 42) to cell centres x + 0.5.
+    int full = 0, any = 0;
+    for (int x = 42; x < 60; ++x) {
+      if (at(x, 16) >= 1.0f) full = x - 41;
+      if (at(x, 16) > 0.0f) any = x - 41;
+    }
+    std::printf("wall %.0f m: fully shadowed to %d m, shadowed to %d m behind it\n", h, full, any);
+    RecordProperty(h < 2 ? "shadow_full_1m" : "shadow_full_4m", full);
+    const double tan10 = std::tan(10 * kPi / 180), tan15 = std::tan(15 * kPi / 180);
+    // Full shadow while H / d > tan 15 (d up to H / tan 15 - 1 for the
+    // bilinear samples), none beyond min(H / tan 10, R_s = 10 m) + 1.
+    EXPECT_GE(full, std::min(static_cast<int>(h / tan15) - 1, 8)) << "H = " << h;
+    EXPECT_LE(any, static_cast<int>(std::min(h / tan10, 10.0)) + 2) << "H = " << h;
+    for (int x = 10; x < 38; ++x) EXPECT_EQ(at(x, 16), 0.0f) << "upwind x=" << x;
+    for (int x = 42; x < 60; ++x) EXPECT_EQ(at(x, 2), 0.0f) << "beside the wall x=" << x;
+  }
+}
+
+// Echo dunes [N24 3.5, TK23]: a vertical 8 m bedrock cliff faces a 6 m/s
+// wind across 0.5 m of sand. With echo dunes on, the cells within the gap
+// ratio times the cliff height of its foot are erosion cells and the next
+// ones sticky: after some steps the foot is bare and a dune stands upwind,
+// separated from the cliff by a gap of the order of the cliff height (the
+// wind tunnel picture of Tsoar 1983, N24 Fig. 4). Without them, sand piles
+// against the cliff's foot (no gap).
+struct EchoProfile {
+  double gap_m;       // from the cliff's foot to the first cell upwind holding >= 0.1 m
+  double crest_m;     // from the foot to the highest sand upwind
+  double crest_sand;  // its thickness
+};
+EchoProfile echo_profile(bool echo) {
+  const int nx = 192, ny = 16, foot = 120;  // the cliff face is the west edge of x = 120
+  Simulation sim(spec_from(std::string(R"({
+      "domain": {"nx": 192, "ny": 16, "cell_size_m": 1.0},
+      "layers": {"sand": {"constant": 0.5}},
+      "wind": {"constant": {"speed_mps": 6}},
+      "model": {"warp_large_weight": 1, "warp_small_weight": 0, "warp_large_deviation": 0,
+                "venturi_k": 0, "bedrock_avalanche_iterations": 0, "echo_dunes": )") +
+                           (echo ? "true" : "false") + R"(},
+      "run": {"steps": 150}})"),
+                 ".", cpu_threads(2));
+  TileState st = sim.state();
+  for (int y = 0; y < ny; ++y)
+    for (int x = 0; x < nx; ++x) {
+      // Plateau 8 m high on [120, 160), a 17 degree slope down to x = 186.
+      const double h = x < foot ? 0.0 : x < 160 ? 8.0 : std::max(0.0, 8.0 - (x - 159) * 0.3);
+      st.bedrock(x, y) = m_to_units(h);
+      st.sand(x, y) = x < foot - 40 || x >= 190 ? m_to_units(0.5) : 0;
+    }
+  sim.backend().upload(st);
+  for (int s = 0; s < 150; ++s) sim.step();
+  const auto sand = sand_m(sim.state());
+  // Mean over the rows (the scene is uniform in y).
+  auto at = [&](int x) {
+    double m = 0;
+    for (int y = 0; y < ny; ++y) m += sand[static_cast<size_t>(y) * nx + x];
+    return m / ny;
+  };
+  EchoProfile p{0, 0, 0};
+  int first = foot - 1;
+  while (first > foot - 60 && at(first) < 0.1) --first;
+  p.gap_m = foot - 1 - first;
+  for (int x = foot - 60; x < foot; ++x)
+    if (at(x) > p.crest_sand) {
+      p.crest_sand = at(x);
+      p.crest_m = foot - x - 0.5;
+    }
+  return p;
+}
+
+TEST(Behaviour, EchoDuneFormsUpwindOfACliffBehindASandFreeGap) {
+  const double cliff_m = 8;
+  const EchoProfile with = echo_profile(true), without = echo_profile(false);
+  std::printf(
+      "echo dunes on: gap %.1f m, crest %.1f m upwind (%.2f m of sand); off: gap %.1f m, "
+      "crest %.1f m (%.2f m); cliff %.0f m\n",
+      with.gap_m, with.crest_m, with.crest_sand, without.gap_m, without.crest_m, without.crest_sand,
+      cliff_m);
+  RecordProperty("gap_m", std::to_string(with.gap_m));
+  RecordProperty("crest_m", std::to_string(with.crest_m));
+  // The gap is of the order of the cliff height (erosion cells reach one
+  // cliff height; avalanching of the dune's lee may creep into it).
+  EXPECT_GE(with.gap_m, 0.5 * cliff_m);
+  EXPECT_LE(with.gap_m, 1.5 * cliff_m);
+  // The dune stands beyond the gap, within the sticky zone (3 H).
+  EXPECT_GT(with.crest_m, with.gap_m);
+  EXPECT_LE(with.crest_m, 3 * cliff_m + 2);
+  EXPECT_GT(with.crest_sand, 0.5) << "no dune grew";
+  // Without echo dunes nothing keeps the foot bare.
+  EXPECT_LT(without.gap_m, 0.25 * cliff_m);
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 #include "sim/model.h"
 #include "sim/state.h"
 #include "stages/events.h"
+#include "stages/obstacles.h"
 
 namespace erg {
 
@@ -50,6 +51,10 @@ class Backend {
   virtual total_t apply_sand_brush(const events::Brush& b) = 0;
   virtual total_t apply_bedrock_brush(const events::Brush& b) = 0;
   virtual void set_vegetation(const events::Region& r) = 0;
+  // Builds (remove = false: cells take the larger height; their sand and
+  // airborne sand are removed) or clears an obstacle shape. Returns the
+  // exact change of the sand total (units, <= 0).
+  virtual total_t set_obstacle(const obstacles::Shape& s, bool remove) = 0;
 
   virtual Totals totals() = 0;
   // Wait for queued device work (timing); no-op on the CPU.

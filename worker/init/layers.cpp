@@ -184,4 +184,51 @@ std::vector<double> generate_layer(const erg::v1::Layer& layer, LayerKind kind,
   return out;
 }
 
+std::vector<obstacles::Shape> obstacle_shapes(const erg::v1::Obstacle& o, double lx_m,
+                                              double ly_m) {
+  std::vector<obstacles::Shape> out;
+  const auto h = static_cast<float>(o.height_m());
+  switch (o.shape_case()) {
+    case erg::v1::Obstacle::kDisk:
+      out.push_back({obstacles::kDisk, o.disk().x_m(), o.disk().y_m(), 0, 0, o.disk().radius_m(), h,
+                     lx_m, ly_m});
+      break;
+    case erg::v1::Obstacle::kRect:
+      out.push_back({obstacles::kRect, o.rect().x_m(), o.rect().y_m(), o.rect().size_x_m(),
+                     o.rect().size_y_m(), 0, h, lx_m, ly_m});
+      break;
+    case erg::v1::Obstacle::kRoad: {
+      const auto& r = o.road();
+      for (int k = 0; k + 1 < r.points_size(); ++k)
+        out.push_back({obstacles::kCapsule, r.points(k).x_m(), r.points(k).y_m(),
+                       r.points(k + 1).x_m(), r.points(k + 1).y_m(), 0.5 * r.width_m(), h, lx_m,
+                       ly_m});
+      break;
+    }
+    default:
+      break;
+  }
+  return out;
+}
+
+std::vector<double> generate_obstacles(const erg::v1::Obstacles& obs, const erg::v1::JobSpec& spec,
+                                       const TileGeom& tile, const std::string& base_dir) {
+  std::vector<double> out(static_cast<size_t>(tile.nx) * tile.ny, 0.0);
+  if (obs.has_map()) {
+    add_map(obs.map(), spec, tile, base_dir, out);
+    for (auto& v : out) v = std::max(v, 0.0);
+  }
+  const double l = spec.domain().cell_size_m();
+  const double lx = tile.gnx * l, ly = tile.gny * l;
+  for (const auto& o : obs.shapes())
+    for (const obstacles::Shape& s : obstacle_shapes(o, lx, ly))
+      for (int y = 0; y < tile.ny; ++y)
+        for (int x = 0; x < tile.nx; ++x) {
+          const double px = (tile.x0 + x + 0.5) * l, py = (tile.y0 + y + 0.5) * l;
+          double& v = out[static_cast<size_t>(y) * tile.nx + x];
+          if (obstacles::covers(s, px, py)) v = std::max(v, static_cast<double>(s.height_m));
+        }
+  return out;
+}
+
 }  // namespace erg::init

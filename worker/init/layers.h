@@ -9,6 +9,7 @@
 
 #include "core/grid.h"
 #include "erg/v1/job.pb.h"
+#include "stages/obstacles.h"
 
 namespace erg::init {
 
@@ -20,5 +21,14 @@ enum class LayerKind : std::uint32_t { kBedrock = 1, kSand = 2, kVegetation = 3,
 std::vector<double> generate_layer(const erg::v1::Layer& layer, LayerKind kind,
                                    const erg::v1::JobSpec& spec, const TileGeom& tile,
                                    const std::string& base_dir);
+
+// The shapes of one obstacle (a road gives one capsule per segment of its
+// polyline) on a domain of lx_m x ly_m metres.
+std::vector<obstacles::Shape> obstacle_shapes(const erg::v1::Obstacle& o, double lx_m, double ly_m);
+
+// Obstacle heights o >= 0 (metres) at the tile's owned cells, row-major: the
+// largest of the shapes and the map covering each cell (stages/obstacles.h).
+std::vector<double> generate_obstacles(const erg::v1::Obstacles& obs, const erg::v1::JobSpec& spec,
+                                       const TileGeom& tile, const std::string& base_dir);
 
 }  // namespace erg::init

@@ -176,6 +176,10 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
     ints("airborne_units", c.airborne_units);
     floats("vegetation", c.vegetation);
     floats("resistance", c.resistance);
+    if (!c.obstacles.empty()) {
+      check_size("obstacles", c.obstacles.size());
+      floats("obstacles", c.obstacles);
+    }
 
     detail::write_checkpoint_attrs(fid, c, path);
 
@@ -203,6 +207,8 @@ Checkpoint read_checkpoint(const std::string& path) {
       detail::read_dataset<std::int64_t>(fid, "airborne_units", H5T_NATIVE_INT64, grid, path);
   c.vegetation = detail::read_dataset<float>(fid, "vegetation", H5T_NATIVE_FLOAT, grid, path);
   c.resistance = detail::read_dataset<float>(fid, "resistance", H5T_NATIVE_FLOAT, grid, path);
+  if (detail::link_exists(fid, "obstacles"))
+    c.obstacles = detail::read_dataset<float>(fid, "obstacles", H5T_NATIVE_FLOAT, grid, path);
 
   detail::read_checkpoint_ledger(fid, path, c);
   return c;

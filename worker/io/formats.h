@@ -33,10 +33,10 @@ struct SnapshotLayer {
   const float* data;
   int components;
 };
-// The layers in file order: the four required ones, then airborne and shadow
+// The layers in file order: the four required ones, then airborne, shadow and obstacles
 // where asked for (their pointers as given, which may be null).
 std::vector<SnapshotLayer> snapshot_layers(const SnapshotFields& f, bool with_airborne,
-                                           bool with_shadow);
+                                           bool with_shadow, bool with_obstacles = false);
 
 // The root attributes of a snapshot (SnapshotMeta plus the fixed "periodic"
 // and "units").

@@ -44,6 +44,7 @@ struct SnapshotFields {
   const float* wind = nullptr;        // m/s, [ny][nx][2] interleaved (x, y)
   const float* airborne = nullptr;    // metres of saltating sand; optional
   const float* shadow = nullptr;      // [0, 1]; optional
+  const float* obstacles = nullptr;   // obstacle height, metres (0: none); optional
 };
 
 // Writes datasets /bedrock /sand /vegetation (float32 [ny][nx]), /wind
@@ -55,14 +56,14 @@ void write_snapshot(const std::string& path, const SnapshotMeta& meta, const Sna
 // as spacing, attributes bedrock, sand, vegetation, wind, height). `h5_name`
 // is the snapshot file name relative to the XDMF file.
 void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const SnapshotMeta& meta,
-                bool has_airborne, bool has_shadow);
+                bool has_airborne, bool has_shadow, bool has_obstacles = false);
 
 // Reads a snapshot back (tests, tools). Missing optional datasets stay empty;
 // terrain_only reads bedrock, sand and vegetation alone (what a preview
 // needs: 12 of the 28 bytes per cell).
 struct Snapshot {
   SnapshotMeta meta;
-  std::vector<float> bedrock, sand, vegetation, wind, airborne, shadow;
+  std::vector<float> bedrock, sand, vegetation, wind, airborne, shadow, obstacles;
 };
 Snapshot read_snapshot(const std::string& path, bool terrain_only = false);
 
@@ -74,6 +75,7 @@ struct Checkpoint {
   std::string job_spec_json;
   std::vector<std::int64_t> bedrock_units, sand_units, airborne_units;
   std::vector<float> vegetation, resistance;
+  std::vector<float> obstacles;  // obstacle heights, metres (empty: none, older files)
   // Named 128-bit ledgers (e.g. sand added by events), as decimal strings.
   std::vector<std::pair<std::string, std::string>> ledger;
 };

@@ -510,12 +510,14 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
   }
   check_tiling(co, path, slab, meta.nx, meta.ny);
   // An optional layer is written when every rank that owns cells has it.
-  int have[2] = {f.airborne || slab_empty(slab) ? 1 : 0, f.shadow || slab_empty(slab) ? 1 : 0};
-  MPI_Allreduce(MPI_IN_PLACE, have, 2, MPI_INT, MPI_LAND, comm);
-  const bool has_airborne = have[0] != 0, has_shadow = have[1] != 0;
+  int have[3] = {f.airborne || slab_empty(slab) ? 1 : 0, f.shadow || slab_empty(slab) ? 1 : 0,
+                 f.obstacles || slab_empty(slab) ? 1 : 0};
+  MPI_Allreduce(MPI_IN_PLACE, have, 3, MPI_INT, MPI_LAND, comm);
+  const bool has_airborne = have[0] != 0, has_shadow = have[1] != 0, has_obstacles = have[2] != 0;
 
   SizeBound bound;
-  for (const detail::SnapshotLayer& l : detail::snapshot_layers(f, has_airborne, has_shadow)) {
+  for (const detail::SnapshotLayer& l :
+       detail::snapshot_layers(f, has_airborne, has_shadow, has_obstacles)) {
     bound.add_dataset(meta.nx, meta.ny, l.components, sizeof(float), chunk_nx, chunk_ny);
   }
   for (const std::string* s :
@@ -531,7 +533,8 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
     co.agree();
     TileWriter w{co, file, dxpl.get(), path, slab, meta.nx, meta.ny, chunk_nx, chunk_ny};
     // The optional layers as agreed above (a rank without cells may pass null).
-    for (const detail::SnapshotLayer& l : detail::snapshot_layers(f, has_airborne, has_shadow)) {
+    for (const detail::SnapshotLayer& l :
+         detail::snapshot_layers(f, has_airborne, has_shadow, has_obstacles)) {
       w.write(l.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, l.components, l.data,
               detail::kSnapshotDeflate);
     }
@@ -588,8 +591,13 @@ void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Che
   Hid fcpl;
   co.run([&] { fcpl = detail::checkpoint_fcpl(path); });
   co.agree();
+  // Obstacles are written when every rank that owns cells has them.
+  int have_obstacles =
+      slab_empty(slab) || (!c.obstacles.empty() && c.obstacles.size() == slab_cells(slab)) ? 1 : 0;
+  MPI_Allreduce(MPI_IN_PLACE, &have_obstacles, 1, MPI_INT, MPI_LAND, comm);
+  const bool has_obstacles = have_obstacles != 0;
   SizeBound bound;
-  for (std::size_t element : {8, 8, 8, 4, 4}) {
+  for (std::size_t element : {8, 8, 8, 4, 4, 4}) {
     bound.add_dataset(c.nx, c.ny, 1, element, chunk_nx, chunk_ny);
   }
   bound.add_text(c.job_spec_json);
@@ -611,6 +619,7 @@ void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Che
     ints("airborne_units", c.airborne_units);
     floats("vegetation", c.vegetation);
     floats("resistance", c.resistance);
+    if (has_obstacles) floats("obstacles", c.obstacles);
     co.run([&] { detail::write_checkpoint_attrs(file, c, path); });
     co.agree();
   });
@@ -670,6 +679,8 @@ Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, cons
   read("airborne_units", H5T_NATIVE_INT64, c.airborne_units);
   read("vegetation", H5T_NATIVE_FLOAT, c.vegetation);
   read("resistance", H5T_NATIVE_FLOAT, c.resistance);
+  // (The same file on every rank: every rank gets the same answer.)
+  if (detail::link_exists(fid, "obstacles")) read("obstacles", H5T_NATIVE_FLOAT, c.obstacles);
 
   co.run([&] { detail::read_checkpoint_ledger(fid, path, c); });
   co.agree();

@@ -25,13 +25,15 @@ void detail::check_grid(const std::string& path, int nx, int ny) {
 }
 
 std::vector<detail::SnapshotLayer> detail::snapshot_layers(const SnapshotFields& f,
-                                                           bool with_airborne, bool with_shadow) {
+                                                           bool with_airborne, bool with_shadow,
+                                                           bool with_obstacles) {
   std::vector<SnapshotLayer> layers = {{"bedrock", f.bedrock, 1},
                                        {"sand", f.sand, 1},
                                        {"vegetation", f.vegetation, 1},
                                        {"wind", f.wind, 2}};
   if (with_airborne) layers.push_back({"airborne", f.airborne, 1});
   if (with_shadow) layers.push_back({"shadow", f.shadow, 1});
+  if (with_obstacles) layers.push_back({"obstacles", f.obstacles, 1});
   return layers;
 }
 
@@ -124,7 +126,8 @@ void write_snapshot(const std::string& path, const SnapshotMeta& meta, const Sna
     Hid file = detail::create_hdf5_in_memory(out);
     const hid_t fid = file.get();
     const hsize_t ny = static_cast<hsize_t>(meta.ny), nx = static_cast<hsize_t>(meta.nx);
-    for (const detail::SnapshotLayer& l : detail::snapshot_layers(f, f.airborne, f.shadow)) {
+    for (const detail::SnapshotLayer& l :
+         detail::snapshot_layers(f, f.airborne, f.shadow, f.obstacles)) {
       std::vector<hsize_t> dims = {ny, nx};
       if (l.components > 1) dims.push_back(static_cast<hsize_t>(l.components));
       detail::write_dataset(fid, l.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, dims, l.data,
@@ -139,7 +142,7 @@ void write_snapshot(const std::string& path, const SnapshotMeta& meta, const Sna
 }
 
 void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const SnapshotMeta& meta,
-                bool has_airborne, bool has_shadow) {
+                bool has_airborne, bool has_shadow, bool has_obstacles) {
   check_grid(xdmf_path, meta.nx, meta.ny);
   if (h5_name.empty()) fail(xdmf_path, "XDMF needs the name of its HDF5 file");
 
@@ -194,6 +197,7 @@ void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const 
   os << "      </Attribute>\n";
   if (has_airborne) scalar("airborne");
   if (has_shadow) scalar("shadow");
+  if (has_obstacles) scalar("obstacles");
   os << "    </Grid>\n"
      << "  </Domain>\n"
      << "</Xdmf>\n";
@@ -237,6 +241,7 @@ Snapshot read_snapshot(const std::string& path, bool terrain_only) {
   s.wind = layer("wind", {ny, nx, 2});
   if (detail::link_exists(fid, "airborne")) s.airborne = layer("airborne", grid);
   if (detail::link_exists(fid, "shadow")) s.shadow = layer("shadow", grid);
+  if (detail::link_exists(fid, "obstacles")) s.obstacles = layer("obstacles", grid);
   return s;
 }
 

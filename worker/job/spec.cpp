@@ -352,6 +352,14 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
     out.push_back("model.shadow_radius_m = " + num(m.shadow_radius_m()) + " m is " +
                   num(m.shadow_radius_m() / l) + " cells at domain.cell_size_m = " + num(l) +
                   " m; allowed shadow_radius_m <= " + num(kMaxShadowCells * l) + " m (128 cells)");
+  if (m.echo_dunes() && m.echo_reach_m() > kMaxShadowCells * l)
+    out.push_back("model.echo_reach_m = " + num(m.echo_reach_m()) + " m is " +
+                  num(m.echo_reach_m() / l) + " cells at domain.cell_size_m = " + num(l) +
+                  " m; allowed echo_reach_m <= " + num(kMaxShadowCells * l) + " m (128 cells)");
+  if (m.echo_sticky_ratio() < m.echo_gap_ratio())
+    out.push_back("model.echo_sticky_ratio = " + num(m.echo_sticky_ratio()) +
+                  " is below model.echo_gap_ratio = " + num(m.echo_gap_ratio()) +
+                  "; allowed echo_sticky_ratio >= echo_gap_ratio");
   if (m.shadow_angle_min_deg() >= m.shadow_angle_max_deg())
     out.push_back("model.shadow_angle_min_deg = " + num(m.shadow_angle_min_deg()) +
                   " must be below model.shadow_angle_max_deg = " + num(m.shadow_angle_max_deg()));
@@ -373,13 +381,36 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
   check_layer(layers.sand(), "layers.sand", spec, base_dir, out);
   check_layer(layers.vegetation(), "layers.vegetation", spec, base_dir, out);
   check_layer(layers.resistance(), "layers.resistance", spec, base_dir, out);
+  if (layers.obstacles().has_map()) {
+    erg::v1::Layer map_only;  // the same checks as a layer's map
+    *map_only.mutable_map() = layers.obstacles().map();
+    check_layer(map_only, "layers.obstacles", spec, base_dir, out);
+  }
+  auto check_obstacle = [&](const erg::v1::Obstacle& o, const std::string& p) {
+    if (o.shape_case() == erg::v1::Obstacle::SHAPE_NOT_SET)
+      out.push_back(p + " has no shape; set one of disk, rect, road");
+    else if (o.has_road() && o.road().points_size() < 2)
+      out.push_back(p + ".road.points has " + std::to_string(o.road().points_size()) +
+                    " points; allowed at least 2");
+  };
+  for (int k = 0; k < layers.obstacles().shapes_size(); ++k)
+    check_obstacle(layers.obstacles().shapes(k),
+                   "layers.obstacles.shapes[" + std::to_string(k) + "]");
 
   for (int k = 0; k < spec.events_size(); ++k) {
     const auto& e = spec.events(k);
     const std::string p = "events[" + std::to_string(k) + "]";
     switch (e.action_case()) {
       case erg::v1::Event::ACTION_NOT_SET:
-        out.push_back(p + " has no action; set one of sand, bedrock, vegetation, wind");
+        out.push_back(p +
+                      " has no action; set one of sand, bedrock, vegetation, wind, add_obstacle, "
+                      "remove_obstacle");
+        break;
+      case erg::v1::Event::kAddObstacle:
+        check_obstacle(e.add_obstacle(), p + ".add_obstacle");
+        break;
+      case erg::v1::Event::kRemoveObstacle:
+        check_obstacle(e.remove_obstacle(), p + ".remove_obstacle");
         break;
       case erg::v1::Event::kWind:
         check_wind(e.wind(), p + ".wind", out);

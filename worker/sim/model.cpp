@@ -48,6 +48,16 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
   md.shadow.steps = std::min(md.shadow.steps, wind_shadow::kMaxShadowSteps);  // validated: <= 128
   wind_shadow::finish(md.shadow);
 
+  auto& e = md.echo;
+  e.on = m.echo_dunes();
+  e.steps = std::min(static_cast<int>(std::ceil(m.echo_reach_m() / l - 1e-9)),
+                     wind_shadow::kMaxShadowSteps);  // validated: <= 128
+  e.rise_per_cell = static_cast<float>(std::tan(m.echo_cliff_deg() * kDeg) * l);
+  e.cell_m = static_cast<float>(l);
+  e.gap_ratio = static_cast<float>(m.echo_gap_ratio());
+  e.sticky_ratio = static_cast<float>(m.echo_sticky_ratio());
+  e.stickiness = static_cast<float>(m.echo_stickiness());
+
   auto& s = md.saltation;
   s.slab_units = static_cast<float>(m.slab_m() * kUnitsPerM);
   s.hop_time_s = static_cast<float>(m.hop_time_s());
@@ -58,6 +68,7 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
   s.abrasion_k = static_cast<float>(m.abrasion_k());
   s.abrasion_threshold = m_to_units(m.abrasion_sand_threshold_m());
   s.stochastic = md.stochastic;
+  s.erosion_k = static_cast<float>(m.echo_erosion_k());
 
   md.reptation_k = static_cast<float>(m.reptation_k());
   md.tan_l_sand = static_cast<float>(std::tan(m.repose_deg() * kDeg) * l);

@@ -9,6 +9,7 @@
 
 #include "core/grid.h"
 #include "erg/v1/job.pb.h"
+#include "stages/echo_dunes.h"
 #include "stages/saltation.h"
 #include "stages/wind_shadow.h"
 #include "stages/wind_warping.h"
@@ -67,6 +68,7 @@ struct Model {
   wind_warping::Params warp{};
   CoarseGrid coarse;
   wind_shadow::Params shadow{};
+  echo_dunes::Params echo{};
   saltation::Params saltation{};
   float reptation_k = 0;
   // tan(repose) * l: metres of height difference allowed per cell of distance.
@@ -81,7 +83,8 @@ struct Model {
   bool avalanche_everywhere = false;
 
   // Ghost cells each stage reads (DESIGN.md section 4).
-  int halo_shadow() const { return shadow.steps + 2; }
+  // (The echo-dune search reads the same heights, nearest neighbour.)
+  int halo_shadow() const { return std::max(shadow.steps, echo.on ? echo.steps : 0) + 2; }
   int halo_saltation() const {  // hop reach + bilinear footprint
     return static_cast<int>(std::ceil(saltation.max_hop_m / tile.cell_m)) + 2;
   }

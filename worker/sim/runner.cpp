@@ -104,13 +104,14 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
   f.wind = o.wind.data();
   f.airborne = o.airborne.data();
   f.shadow = o.shadow.data();
+  f.obstacles = o.obstacles.data();
   const std::string h5 = dir + "/snapshots/" + name + ".h5";
   if (ctx.tiled())
     io::write_snapshot_parallel(ctx.cart, h5, meta, f, ctx.slab, ctx.chunk_x, ctx.chunk_y);
   else
     io::write_snapshot(h5, meta, f);
   if (!ctx.root()) return;
-  io::write_xdmf(dir + "/snapshots/" + name + ".xdmf", name + ".h5", meta, true, true);
+  io::write_xdmf(dir + "/snapshots/" + name + ".xdmf", name + ".h5", meta, true, true, true);
   std::string png;
   if (previews) {
     png = dir + "/previews/" + name + ".png";

@@ -47,6 +47,12 @@ TileState initial_state(const erg::v1::JobSpec& spec, const Model& model,
       s.resistance,
       init::generate_layer(L.resistance(), LayerKind::kResistance, spec, model.tile, base_dir),
       [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
+  set_owned_cells(s.obstacles, init::generate_obstacles(L.obstacles(), spec, model.tile, base_dir),
+                  [](double o) { return static_cast<float>(o); });
+  // Obstacles hold no sand [BR04 4]: initial sand inside them is dropped.
+  for (int y = 0; y < model.tile.ny; ++y)
+    for (int x = 0; x < model.tile.nx; ++x)
+      if (obstacles::is_obstacle(s.obstacles(x, y))) s.sand(x, y) = 0;
   return s;
 }
 
@@ -94,6 +100,8 @@ Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt, const 
   set_owned_cells(s.airborne, ckpt.airborne_units);
   set_owned_cells(s.vegetation, ckpt.vegetation);
   set_owned_cells(s.resistance, ckpt.resistance);
+  // (Checkpoints written before obstacles existed have none.)
+  if (!ckpt.obstacles.empty()) set_owned_cells(s.obstacles, ckpt.obstacles);
   init_backend(opt, s);
 }
 
@@ -134,6 +142,14 @@ void Simulation::apply_events(std::int64_t step) {
                          lx,
                          ly};
         backend_->set_vegetation(r);
+        break;
+      }
+      case erg::v1::Event::kAddObstacle:
+      case erg::v1::Event::kRemoveObstacle: {
+        const bool add = e.action_case() == erg::v1::Event::kAddObstacle;
+        for (const obstacles::Shape& s :
+             init::obstacle_shapes(add ? e.add_obstacle() : e.remove_obstacle(), lx, ly))
+          sand_added_ += backend_->set_obstacle(s, !add);
         break;
       }
       default:  // wind switches are read by wind::at_step
@@ -188,6 +204,7 @@ io::Checkpoint Simulation::checkpoint() {
   c.airborne_units = owned_cells(s.airborne);
   c.vegetation = owned_cells(s.vegetation);
   c.resistance = owned_cells(s.resistance);
+  c.obstacles = owned_cells(s.obstacles);
   c.ledger = {{"sand_added_by_events", to_decimal(sand_added_)},
               {"bedrock_added_by_events", to_decimal(bedrock_added_)}};
   return c;
@@ -201,6 +218,7 @@ Simulation::Output Simulation::output() {
   o.sand = owned_cells<float>(s.sand, metres);
   o.airborne = owned_cells<float>(s.airborne, metres);
   o.vegetation = owned_cells(s.vegetation);
+  o.obstacles = owned_cells(s.obstacles);
   backend_->download_wind(o.wind);
   backend_->download_shadow(o.shadow);
   return o;

@@ -83,7 +83,7 @@ class Simulation {
 
   // Float fields of the tile's owned cells, row-major, for snapshots.
   struct Output {
-    std::vector<float> bedrock, sand, vegetation, wind, airborne, shadow;
+    std::vector<float> bedrock, sand, vegetation, wind, airborne, shadow, obstacles;
   };
   Output output();
   io::SnapshotMeta snapshot_meta();

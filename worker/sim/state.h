@@ -16,6 +16,7 @@ struct TileState {
   Field<units_t> airborne;  // saltating sand that bounced, units [N24 slab buffer]
   Field<float> vegetation;  // v in [0, 1]
   Field<float> resistance;  // r in [0, 1]
+  Field<float> obstacles;   // obstacle height o >= 0, metres; o > 0: an obstacle [BR04]
 
   void allocate(const TileGeom& g) {
     geom = g;
@@ -24,6 +25,7 @@ struct TileState {
     airborne.reset(g);
     vegetation.reset(g);
     resistance.reset(g);
+    obstacles.reset(g);
   }
 };
 

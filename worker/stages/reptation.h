@@ -37,4 +37,13 @@ ERG_HD units_t exchange(units_t h_i, units_t h_j, float sr_i, float sr_j, units_
   return dh > 0 ? -t : t;  // dh == 0 gives t == 0
 }
 
+// exchange() between cells that may be obstacles (o > 0, stages/obstacles.h):
+// nothing moves into or out of an obstacle [BR04 4.2]. Symmetric like
+// exchange(), so donor and receiver still agree to the unit.
+ERG_HD units_t exchange_free(units_t h_i, units_t h_j, float sr_i, float sr_j, units_t s_i,
+                             units_t s_j, float dist_m, float k_r, float o_i, float o_j) {
+  const units_t t = exchange(h_i, h_j, sr_i, sr_j, s_i, s_j, dist_m, k_r);
+  return (o_i > 0.0f) | (o_j > 0.0f) ? 0 : t;
+}
+
 }  // namespace erg::reptation

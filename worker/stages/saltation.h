@@ -30,20 +30,37 @@ struct Params {
   float abrasion_k;            // k_a
   units_t abrasion_threshold;  // sand thinner than this is abraded through
   bool stochastic;
+  float erosion_k;  // k_e of echo-dune erosion cells (stages/echo_dunes.h)
 };
+
+// The lift factor (1 - sigma)(1 - v) with the echo-dune classification r_e
+// (stages/echo_dunes.h): + k_e on erosion cells (r_e < 0), x (1 - r_e) on
+// sticky ones [N24 3.6]. r_e = 0 leaves it unchanged, bit for bit.
+ERG_HD float echo_lift_factor(float f, float echo, const Params& p) {
+  return echo < 0.0f ? f + p.erosion_k : (echo > 0.0f ? f * (1.0f - echo) : f);
+}
+// Deposition with r_e: none on erosion cells, beta + r_e (1 - beta) on sticky ones.
+ERG_HD float echo_deposition(float beta, float echo) {
+  return echo < 0.0f ? 0.0f : (echo > 0.0f ? beta + echo * (1.0f - beta) : beta);
+}
 
 // (1) Lift: eps_S (1 - sigma)(1 - v), at most the sand present [N24 eq. 5].
 // Still air lifts nothing (a hop of length 0 would only churn the cell).
-ERG_HD units_t lift_expected(units_t sand, float shadow, float v, float wind_speed,
-                             const Params& p) {
-  const units_t want = floor_units(p.slab_units * vegetation::lift_factor(shadow, v));
+ERG_HD units_t lift_expected(units_t sand, float shadow, float v, float wind_speed, const Params& p,
+                             float echo = 0.0f) {
+  const units_t want =
+      floor_units(p.slab_units * echo_lift_factor(vegetation::lift_factor(shadow, v), echo, p));
   return wind_speed > 0.0f ? min_of(want, sand) : 0;
 }
 // A whole slab is lifted with probability (1 - sigma)(1 - v) [P19 5.1].
+// (An erosion cell's factor above 1 lifts a second slab: floor of the factor
+// slabs surely, one more with its fractional part.)
 ERG_HD units_t lift_stochastic(units_t sand, float shadow, float v, float wind_speed, float u,
-                               const Params& p) {
-  const bool lifts = wind_speed > 0.0f && u < vegetation::lift_factor(shadow, v);
-  return lifts ? min_of(floor_units(p.slab_units), sand) : 0;
+                               const Params& p, float echo = 0.0f) {
+  const float f = echo_lift_factor(vegetation::lift_factor(shadow, v), echo, p);
+  const float whole = floorf(f);
+  const float slabs = wind_speed > 0.0f ? whole + (u < f - whole ? 1.0f : 0.0f) : 0.0f;
+  return min_of(floor_units(p.slab_units * slabs), sand);
 }
 
 // (2) Landing point of an amount leaving local cell (x, y) under wind w, in
@@ -97,15 +114,17 @@ struct Impact {
 };
 // `sand` is the cell's sand after lifting; `u` the deposit draw (stochastic).
 ERG_HD Impact impact(units_t landed, units_t sand, float shadow, float v, float resistance,
-                     float wind_speed, float u, const Params& p) {
+                     float wind_speed, float u, const Params& p, float echo = 0.0f) {
   // Branch-free (selects only), so the loop over cells vectorises.
   // Stochastic slabs see Werner's step (any sand); expected transport its mean.
   // (The division is not conditional: a conditional one is not if-converted.)
   const bool has_slab = p.slab_units > 0.0f;
   const float ramp = min_of(static_cast<float>(sand) / (has_slab ? p.slab_units : 1.0f), 1.0f);
   const float sand_fraction = (p.stochastic || !has_slab) ? (sand > 0 ? 1.0f : 0.0f) : ramp;
-  const float beta = vegetation::deposition_probability(shadow, sand_fraction, v, p.deposit_on_sand,
-                                                        p.deposit_on_bedrock);
+  const float beta =
+      echo_deposition(vegetation::deposition_probability(shadow, sand_fraction, v,
+                                                         p.deposit_on_sand, p.deposit_on_bedrock),
+                      echo);
   const units_t expected = min_of(floor_units(static_cast<float>(landed) * beta), landed);
   Impact r;
   r.deposited = p.stochastic ? ((u < beta) ? landed : 0) : expected;

@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "backend/cpu/cpu_backend.h"
+#include "stages/obstacles.h"
 
 namespace erg::cpu {
 
@@ -55,7 +56,8 @@ struct Stencil {
 // kBedrock: unlimited supply and one repose tangent for all cells.
 template <bool kBedrock>
 bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, const units_t* sand,
-                      float kc, const Stencil& st, int x0, int x1, float* __restrict frac) {
+                      const float* ob, float kc, const Stencil& st, int x0, int x1,
+                      float* __restrict frac) {
   const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
   const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
   int checks = 0, positive = 0;
@@ -64,9 +66,11 @@ bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, con
                          h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
     const avalanching::Fraction fr = avalanching::fraction(
         h[x], hn, kBedrock ? tan_l_const : tan_l[x], kBedrock ? kUnlimited : sand[x], kc);
-    frac[x] = fr.f;
-    checks += fr.check;
-    positive += fr.f > 0.0f;
+    // An obstacle gives nothing (it is a wall, stages/obstacles.h).
+    const bool wall = obstacles::is_obstacle(ob[x]);
+    frac[x] = wall ? 0.0f : fr.f;
+    checks += fr.check & !wall;
+    positive += (fr.f > 0.0f) & !wall;
   }
   if (checks > 0) {
     // Rare: shares that might exceed the sand present; the complete donor()
@@ -76,7 +80,7 @@ bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, con
                            h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
       const float t = kBedrock ? tan_l_const : tan_l[x];
       const units_t avail = kBedrock ? kUnlimited : sand[x];
-      if (avalanching::fraction(h[x], hn, t, avail, kc).check)
+      if (avalanching::fraction(h[x], hn, t, avail, kc).check && !obstacles::is_obstacle(ob[x]))
         frac[x] = avalanching::donor(h[x], hn, t, avail, kc).f;
     }
   }
@@ -153,8 +157,10 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
     for (int y = y0; y < y1; ++y) {
       const units_t* b = bedrock_.row(y);
       const units_t* s = sand_.row(y);
+      const float* o = obstacles_.row(y);
       float* h = h_a_.row(y);
-      for (int x = x0; x < x1; ++x) h[x] = units_to_m(bedrock ? b[x] : b[x] + s[x]);
+      for (int x = x0; x < x1; ++x)
+        h[x] = obstacles::avalanche_height(units_to_m(bedrock ? b[x] : b[x] + s[x]), o[x]);
     }
   };
   AvalancheRounds::Round round = m_.rounds.of(1, iterations);
@@ -218,10 +224,11 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
         const int x0 = std::max(s * kSegment - widest, -grow1);
         const int x1 = std::min((s + 1) * kSegment - widest, nx + grow1);
         if (x0 >= x1) continue;
-        positive[k] = bedrock ? fraction_segment<true>(h_a_.row(y), nullptr, tan_b, nullptr, kc, st,
-                                                       x0, x1, frac_.row(y))
-                              : fraction_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f,
-                                                        sand_.row(y), kc, st, x0, x1, frac_.row(y));
+        positive[k] =
+            bedrock ? fraction_segment<true>(h_a_.row(y), nullptr, tan_b, nullptr,
+                                             obstacles_.row(y), kc, st, x0, x1, frac_.row(y))
+                    : fraction_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f, sand_.row(y),
+                                              obstacles_.row(y), kc, st, x0, x1, frac_.row(y));
         any_positive = any_positive || positive[k];
       }
     }
@@ -299,8 +306,10 @@ int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
         const int x1 = std::min((s + 1) * kSegment - widest, nx + grow2);
         const units_t* b = bedrock_.row(y);
         const units_t* sd = sand_.row(y);
+        const float* o = obstacles_.row(y);
         float* h = h_a_.row(y);
-        for (int x = x0; x < x1; ++x) h[x] = units_to_m(bedrock ? b[x] : b[x] + sd[x]);
+        for (int x = x0; x < x1; ++x)
+          h[x] = obstacles::avalanche_height(units_to_m(bedrock ? b[x] : b[x] + sd[x]), o[x]);
       }
     }
 

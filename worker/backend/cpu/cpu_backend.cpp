@@ -2,6 +2,7 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <cstring>
 
 #include "stages/vegetation.h"
@@ -19,10 +20,12 @@ CpuBackend::CpuBackend(const Model& model, int threads, dist::Exchange& ex)
   airborne_.reset(g_);
   vegetation_.reset(g_);
   resistance_.reset(g_);
+  obstacles_.reset(g_);
   height_m_.reset(g_);
   wind_x_.reset(g_);
   wind_y_.reset(g_);
   shadow_.reset(g_);
+  echo_.reset(g_);
   landed_.reset(g_);
   reptation_.reset(g_);
   height_units_.reset(g_);
@@ -39,8 +42,18 @@ void CpuBackend::upload(const TileState& s) {
   airborne_ = s.airborne;
   vegetation_ = s.vegetation;
   resistance_ = s.resistance;
+  obstacles_ = s.obstacles;
   bedrock_changed_ = true;
   update_repose();
+  obstacles_changed();
+}
+
+void CpuBackend::obstacles_changed() {
+  ex_.fill(obstacles_, g_.halo);
+  const float* o = obstacles_.data();
+  bool any = false;
+  for (size_t i = 0; i < obstacles_.size(); ++i) any |= obstacles::is_obstacle(o[i]);
+  any_obstacles_ = any;
 }
 
 void CpuBackend::download(TileState& s) {
@@ -50,6 +63,7 @@ void CpuBackend::download(TileState& s) {
   s.airborne = airborne_;
   s.vegetation = vegetation_;
   s.resistance = resistance_;
+  s.obstacles = obstacles_;
 }
 
 void CpuBackend::download_wind(std::vector<float>& wind_xy) {
@@ -95,9 +109,11 @@ total_t CpuBackend::apply_sand_brush(const events::Brush& b) {
 #pragma omp parallel for num_threads(threads_) schedule(static) reduction(+ : change)
   for (int y = 0; y < g_.ny; ++y) {
     units_t* s = sand_.row(y);
+    const float* o = obstacles_.row(y);
     for (int x = 0; x < g_.nx; ++x) {
       units_t d = events::brush_units(b, centre_x(g_, x), centre_y(g_, y));
-      if (d < -s[x]) d = -s[x];  // never below bare ground
+      if (d < -s[x]) d = -s[x];                 // never below bare ground
+      if (obstacles::is_obstacle(o[x])) d = 0;  // obstacles hold no sand
       s[x] += d;
       change += d;
     }
@@ -132,6 +148,31 @@ void CpuBackend::set_vegetation(const events::Region& r) {
       if (events::in_region(r, centre_x(g_, x), centre_y(g_, y))) v[x] = r.value;
   }
   update_repose();
+}
+
+total_t CpuBackend::set_obstacle(const obstacles::Shape& sh, bool remove) {
+  total_t change = 0;
+#pragma omp parallel for num_threads(threads_) schedule(static) reduction(+ : change)
+  for (int y = 0; y < g_.ny; ++y) {
+    float* o = obstacles_.row(y);
+    units_t* s = sand_.row(y);
+    units_t* a = airborne_.row(y);
+    for (int x = 0; x < g_.nx; ++x) {
+      if (!obstacles::covers(sh, centre_x(g_, x), centre_y(g_, y))) continue;
+      if (remove) {
+        o[x] = 0.0f;
+      } else {
+        o[x] = std::max(o[x], sh.height_m);
+        change -= s[x] + a[x];  // an obstacle holds no sand, on the ground or in the air
+        s[x] = 0;
+        a[x] = 0;
+      }
+    }
+  }
+  obstacles_changed();
+  std::vector<total_t> all{change};
+  ex_.sum_exact(all);
+  return all[0];
 }
 
 Totals CpuBackend::totals() {

@@ -55,6 +55,7 @@ class CpuBackend final : public Backend {
   total_t apply_sand_brush(const events::Brush& b) override;
   total_t apply_bedrock_brush(const events::Brush& b) override;
   void set_vegetation(const events::Region& r) override;
+  total_t set_obstacle(const obstacles::Shape& s, bool remove) override;
   Totals totals() override;
 
  private:
@@ -71,15 +72,19 @@ class CpuBackend final : public Backend {
   // exact state
   Field<units_t> bedrock_, sand_, airborne_;
   Field<float> vegetation_, resistance_;
+  Field<float> obstacles_;       // obstacle heights, ghosts filled over the whole halo
+  bool any_obstacles_ = false;   // on this tile or its ghosts (saltation's slow path)
+  void obstacles_changed();      // refills the ghosts, updates any_obstacles_
   bool bedrock_changed_ = true;  // since bedrock avalanching last found it settled
   // derived each step
   Field<float> height_m_;  // b + s in metres, halo filled for the shadow march
   Field<float> wind_x_, wind_y_, shadow_;
+  Field<float> echo_;            // echo-dune classification r_e (stages/echo_dunes.h); 0 when off
   Field<units_t> landed_;        // saltation scatter target (halo for the hop reach)
   Field<float> reptation_;       // s_r
   Field<units_t> height_units_;  // b + s, for reptation
   Field<float> tan_l_;           // tan(repose(v)) * l for sand
-  Field<units_t> sand_next_;  // reptation writes the new sand here
+  Field<units_t> sand_next_;     // reptation writes the new sand here
   // avalanching: heights (updated where they change) and fractions f
   Field<float> h_a_, frac_;
   // wind warping

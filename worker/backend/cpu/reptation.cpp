@@ -10,8 +10,8 @@ namespace {
 
 // One row. A separate function with restrict-qualified outputs: inside an
 // OpenMP region GCC does not vectorise this loop.
-void reptation_row(const units_t* h, const units_t* s, const float* sr, units_t* __restrict next,
-                   int nx, long pitch, float l, float k_r) {
+void reptation_row(const units_t* h, const units_t* s, const float* sr, const float* ob,
+                   units_t* __restrict next, int nx, long pitch, float l, float k_r) {
   const float ld = l * kSqrt2;
   const long o0 = 1, o1 = pitch + 1, o2 = pitch, o3 = pitch - 1;  // kNeighbours order
   const long o4 = -1, o5 = -pitch - 1, o6 = -pitch, o7 = -pitch + 1;
@@ -19,7 +19,8 @@ void reptation_row(const units_t* h, const units_t* s, const float* sr, units_t*
     const units_t hx = h[x], sx = s[x];
     const float srx = sr[x];
     auto ex = [=](long o, float dist_m) {
-      return reptation::exchange(hx, h[x + o], srx, sr[x + o], sx, s[x + o], dist_m, k_r);
+      return reptation::exchange_free(hx, h[x + o], srx, sr[x + o], sx, s[x + o], dist_m, k_r,
+                                      ob[x], ob[x + o]);
     };
     next[x] =
         sx + (((((((ex(o0, l) + ex(o1, ld)) + ex(o2, l)) + ex(o3, ld)) + ex(o4, l)) + ex(o5, ld)) +
@@ -51,7 +52,8 @@ void CpuBackend::reptation() {
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = -e; y < g_.ny + e; ++y)
     reptation_row(height_units_.row(y) - e, sand_.row(y) - e, reptation_.row(y) - e,
-                  sand_next_.row(y) - e, g_.nx + 2 * e, g_.pitch, g_.cell_m, m_.reptation_k);
+                  obstacles_.row(y) - e, sand_next_.row(y) - e, g_.nx + 2 * e, g_.pitch, g_.cell_m,
+                  m_.reptation_k);
   sand_.swap(sand_next_);
 }
 

@@ -7,6 +7,7 @@
 
 #include "backend/cpu/cpu_backend.h"
 #include "core/philox.h"
+#include "stages/obstacles.h"
 
 namespace erg::cpu {
 
@@ -15,20 +16,21 @@ namespace {
 // Row kernels live outside the OpenMP regions, with restrict-qualified
 // outputs, so that GCC vectorises them (it does not inside the regions).
 void lift_row(units_t* __restrict s, units_t* __restrict air, const float* sh, const float* v,
-              const float* wx, const float* wy, const TileGeom& g, int y, std::uint64_t seed,
-              std::uint64_t step, const saltation::Params& p) {
+              const float* wx, const float* wy, const float* echo, const TileGeom& g, int y,
+              std::uint64_t seed, std::uint64_t step, const saltation::Params& p) {
   const int nx = g.nx;
   if (p.stochastic) {
     for (int x = 0; x < nx; ++x) {
       const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLift).v[0]);
       const units_t q =
-          saltation::lift_stochastic(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), u, p);
+          saltation::lift_stochastic(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), u, p, echo[x]);
       s[x] -= q;
       air[x] += q;
     }
   } else {
     for (int x = 0; x < nx; ++x) {
-      const units_t q = saltation::lift_expected(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), p);
+      const units_t q =
+          saltation::lift_expected(s[x], sh[x], v[x], length(Vec2{wx[x], wy[x]}), p, echo[x]);
       s[x] -= q;
       air[x] += q;
     }
@@ -38,8 +40,9 @@ void lift_row(units_t* __restrict s, units_t* __restrict air, const float* sh, c
 // Returns whether any bedrock was abraded.
 bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
                 units_t* __restrict air, const float* sh, const float* v, const float* r,
-                const float* wx, const float* wy, float* __restrict sr, const TileGeom& g, int y,
-                std::uint64_t seed, std::uint64_t step, const saltation::Params& p) {
+                const float* wx, const float* wy, const float* echo, float* __restrict sr,
+                const TileGeom& g, int y, std::uint64_t seed, std::uint64_t step,
+                const saltation::Params& p) {
   const int nx = g.nx;
   units_t abraded = 0;
   if (p.stochastic) {
@@ -47,8 +50,8 @@ bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
       const float u =
           in[x] > 0 ? u01(random4(seed, step, g.global_index(x, y), RandomStream::kDeposit).v[0])
                     : 0.0f;
-      const saltation::Impact im =
-          saltation::impact(in[x], s[x], sh[x], v[x], r[x], length(Vec2{wx[x], wy[x]}), u, p);
+      const saltation::Impact im = saltation::impact(in[x], s[x], sh[x], v[x], r[x],
+                                                     length(Vec2{wx[x], wy[x]}), u, p, echo[x]);
       s[x] += im.deposited + im.abraded;
       b[x] -= im.abraded;
       air[x] = im.bounced;
@@ -57,8 +60,8 @@ bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
     }
   } else {
     for (int x = 0; x < nx; ++x) {
-      const saltation::Impact im =
-          saltation::impact(in[x], s[x], sh[x], v[x], r[x], length(Vec2{wx[x], wy[x]}), 0.0f, p);
+      const saltation::Impact im = saltation::impact(in[x], s[x], sh[x], v[x], r[x],
+                                                     length(Vec2{wx[x], wy[x]}), 0.0f, p, echo[x]);
       s[x] += im.deposited + im.abraded;
       b[x] -= im.abraded;
       air[x] = im.bounced;
@@ -106,6 +109,39 @@ void scatter_row_stochastic(units_t* air, const float* wx, const float* wy, cons
   }
 }
 
+// With obstacles within reach: each hop walks its path and never lands in an
+// obstacle (stages/obstacles.h, [BR04 4.1]); both transport modes, scalar.
+// Without any in reach the result is exactly that of the rows above.
+void scatter_row_obstacles(units_t* air, const float* wx, const float* wy, const TileGeom& g, int y,
+                           std::uint64_t seed, std::uint64_t step, const saltation::Params& p,
+                           const float* o_base, Field<units_t>& landed) {
+  const long pitch = g.pitch;
+  for (int x = 0; x < g.nx; ++x) {
+    const units_t a = air[x];
+    if (a == 0) continue;
+    air[x] = 0;
+    const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, p);
+    const obstacles::Path path =
+        obstacles::hop_path(o_base, pitch, x, y, static_cast<float>(L.x0 - x) + L.fx,
+                            static_cast<float>(L.y0 - y) + L.fy);
+    if (p.stochastic) {
+      const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLanding).v[0]);
+      const int k = saltation::pick_corner(L.fx, L.fy, u);
+      const obstacles::Cell c =
+          obstacles::receiver(o_base, pitch, L.x0 + (k & 1), L.y0 + (k >> 1), path);
+      landed(c.x, c.y) += a;
+    } else {
+      units_t q[4];
+      saltation::split_bilinear(a, L.fx, L.fy, q);
+      for (int k = 0; k < 4; ++k) {
+        const obstacles::Cell c =
+            obstacles::receiver(o_base, pitch, L.x0 + (k & 1), L.y0 + (k >> 1), path);
+        landed(c.x, c.y) += q[k];
+      }
+    }
+  }
+}
+
 }  // namespace
 
 void CpuBackend::saltation(std::int64_t step) {
@@ -117,7 +153,7 @@ void CpuBackend::saltation(std::int64_t step) {
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y)
     lift_row(sand_.row(y), airborne_.row(y), shadow_.row(y), vegetation_.row(y), wind_x_.row(y),
-             wind_y_.row(y), g_, y, seed, ustep, p);
+             wind_y_.row(y), echo_.row(y), g_, y, seed, ustep, p);
 
   // (2) Scatter one hop downwind into `landed_` (owned + ghosts). Rows are cut
   // into bands taller than twice the hop reach; even bands run in parallel,
@@ -134,7 +170,10 @@ void CpuBackend::saltation(std::int64_t step) {
       std::vector<long> target(static_cast<size_t>(g_.nx));
       std::vector<units_t> parts(4 * static_cast<size_t>(g_.nx));
       for (int y = y_begin; y < y_end; ++y) {
-        if (p.stochastic) {
+        if (any_obstacles_) {
+          scatter_row_obstacles(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_, y, seed,
+                                ustep, p, obstacles_.data() + g_.at(0, 0), landed_);
+        } else if (p.stochastic) {
           scatter_row_stochastic(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_, y, seed,
                                  ustep, p, landed_);
         } else {
@@ -165,7 +204,7 @@ void CpuBackend::saltation(std::int64_t step) {
   for (int y = 0; y < g_.ny; ++y)
     abraded = impact_row(landed_.row(y), sand_.row(y), bedrock_.row(y), airborne_.row(y),
                          shadow_.row(y), vegetation_.row(y), resistance_.row(y), wind_x_.row(y),
-                         wind_y_.row(y), reptation_.row(y), g_, y, seed, ustep, p) ||
+                         wind_y_.row(y), echo_.row(y), reptation_.row(y), g_, y, seed, ustep, p) ||
               abraded;
   if (abraded) bedrock_changed_ = true;
 }

@@ -6,6 +6,7 @@
 #include <algorithm>
 
 #include "backend/cpu/cpu_backend.h"
+#include "stages/echo_dunes.h"
 #include "stages/wind_shadow.h"
 
 namespace erg::cpu {
@@ -110,6 +111,20 @@ void CpuBackend::shadow() {
         continue;
       }
       march_segment(base, pitch, wind_x_.row(y), wind_y_.row(y), x0, x1, y, p, out);
+    }
+  }
+  // Echo dunes: erosion and sticky cells in front of cliffs, from the same
+  // heights (stages/echo_dunes.h).
+  if (m_.echo.on) {
+    const echo_dunes::Params e = m_.echo;
+    const float* o_base = obstacles_.data() + g_.at(0, 0);
+#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4)
+    for (int y = 0; y < g_.ny; ++y) {
+      const float* wx = wind_x_.row(y);
+      const float* wy = wind_y_.row(y);
+      float* out = echo_.row(y);
+      for (int x = 0; x < g_.nx; ++x)
+        out[x] = echo_dunes::classify(base, o_base, pitch, x, y, {wx[x], wy[x]}, e);
     }
   }
 }

@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "backend/cpu/cpu_backend.h"
+#include "stages/obstacles.h"
 #include "stages/venturi.h"
 #include "stages/wind_warping.h"
 
@@ -110,11 +111,14 @@ void CpuBackend::wind(Vec2 a) {
     for (int y = J * c.cy; y < (J + 1) * c.cy; ++y) {
       const units_t* b = bedrock_.row(y);
       const units_t* s = sand_.row(y);
+      const float* o = obstacles_.row(y);
       float* h = height_m_.row(y);
-      for (int x = 0; x < g_.nx; ++x) h[x] = units_to_m(b[x] + s[x]);
+      // The wind sees obstacles as terrain [BR04 4.3] (stages/obstacles.h).
+      for (int x = 0; x < g_.nx; ++x) h[x] = units_to_m(b[x] + s[x]) + o[x];
       for (int I = 0; I < cnx; ++I) {
         units_t row = 0;
-        for (int x = I * c.cx; x < (I + 1) * c.cx; ++x) row += b[x] + s[x];
+        for (int x = I * c.cx; x < (I + 1) * c.cx; ++x)
+          row += b[x] + s[x] + obstacles::height_units(o[x]);
         sums[static_cast<size_t>(I)] += row;
       }
     }

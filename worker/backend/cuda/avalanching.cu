@@ -19,6 +19,7 @@
 
 #include "backend/cuda/cuda_backend.h"
 #include "stages/avalanching.h"
+#include "stages/obstacles.h"
 
 namespace erg::gpu {
 
@@ -28,12 +29,14 @@ namespace {
 // ghosts_only: the owned cells' heights are current (a new round of the
 // same width), only the refilled ghosts change.
 __global__ void level0_kernel(TileGeom g, int grow, bool ghosts_only, bool bedrock_only,
-                              const units_t* bedrock, const units_t* sand, float* h) {
+                              const units_t* bedrock, const units_t* sand, const float* ob,
+                              float* h) {
   int x, y;
   if (!grown_cell(g, grow, x, y)) return;
   if (ghosts_only && x >= 0 && x < g.nx && y >= 0 && y < g.ny) return;
   const std::size_t i = g.at(x, y);
-  h[i] = units_to_m(bedrock_only ? bedrock[i] : bedrock[i] + sand[i]);
+  h[i] = obstacles::avalanche_height(units_to_m(bedrock_only ? bedrock[i] : bedrock[i] + sand[i]),
+                                     ob[i]);
 }
 
 // Pass 1: fraction and total sent by every donor (the complete donor(), with
@@ -41,8 +44,8 @@ __global__ void level0_kernel(TileGeom g, int grow, bool ghosts_only, bool bedro
 // same values cell by cell). kBedrock: unlimited supply and one repose tangent.
 template <bool kBedrock>
 __global__ void donor_kernel(TileGeom g, int grow, Offsets off, const float* h, const float* tan_l,
-                             float tan_l_const, const units_t* sand, float kc, float* frac,
-                             units_t* out, int* moved, int* donors) {
+                             float tan_l_const, const units_t* sand, const float* ob, float kc,
+                             float* frac, units_t* out, int* moved, int* donors) {
   int x, y;
   if (!grown_cell(g, grow, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
@@ -50,7 +53,8 @@ __global__ void donor_kernel(TileGeom g, int grow, Offsets off, const float* h, 
   for (int k = 0; k < 8; ++k) hn[k] = h[i + off.o[k]];
   const float t = kBedrock ? tan_l_const : tan_l[i];
   const units_t avail = kBedrock ? kUnlimited : sand[i];
-  const avalanching::Donor d = avalanching::donor(h[i], hn, t, avail, kc);
+  avalanching::Donor d = avalanching::donor(h[i], hn, t, avail, kc);
+  if (obstacles::is_obstacle(ob[i])) d = {0.0f, 0, false};  // a wall gives nothing
   frac[i] = d.f;
   out[i] = d.out;
   // Every writer stores the same value.
@@ -64,7 +68,7 @@ template <bool kBedrock>
 __global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h, const float* tan_l,
                               float tan_l_const, const float* frac, const units_t* out,
                               bool to_sand, units_t* target, units_t* sand, const units_t* bedrock,
-                              float* h_next) {
+                              const float* ob, float* h_next) {
   int x, y;
   if (!grown_cell(g, grow, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
@@ -78,15 +82,15 @@ __global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h,
   }
   if (!kBedrock) {
     target[i] = target[i] - out[i] + in;
-    h_next[i] = units_to_m(bedrock[i] + target[i]);
+    h_next[i] = obstacles::avalanche_height(units_to_m(bedrock[i] + target[i]), ob[i]);
   } else if (to_sand) {
     // Fallen rock breaks into sand where it lands [N24 3.8].
     target[i] -= out[i];
     sand[i] += in;
-    h_next[i] = units_to_m(target[i]);
+    h_next[i] = obstacles::avalanche_height(units_to_m(target[i]), ob[i]);
   } else {
     target[i] = target[i] - out[i] + in;
-    h_next[i] = units_to_m(target[i]);
+    h_next[i] = obstacles::avalanche_height(units_to_m(target[i]), ob[i]);
   }
 }
 
@@ -101,7 +105,7 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
   const bool alone = ex_.tiles() == 1;
 
   ERG_LAUNCH(level0_kernel, grown_cells(g_, e).grid, grown_cells(g_, e).block, g_, e, false,
-             bedrock, bedrock_.get(), sand_.get(), h_a_.get());
+             bedrock, bedrock_.get(), sand_.get(), obstacles_.get(), h_a_.get());
   // moved_[it - 1]: iteration it sent sand; moved_[iterations + it - 1]: it
   // had a donor (f > 0).
   ERG_CUDA_CHECK(
@@ -129,7 +133,7 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
       fill(target, e + 1);
       if (e > e_last && !bedrock) fill(bedrock_, e + 1);
       ERG_LAUNCH(level0_kernel, grown_cells(g_, e).grid, grown_cells(g_, e).block, g_, e,
-                 e <= e_last, bedrock, bedrock_.get(), sand_.get(), h_a_.get());
+                 e <= e_last, bedrock, bedrock_.get(), sand_.get(), obstacles_.get(), h_a_.get());
     }
     const int j = it - round.first + 1;  // iteration within the round
     const float kc = avalanching::kc_for(it, iterations, kc_full, m_.kc_damped);
@@ -139,19 +143,20 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
     int* donors = moved_.get() + iterations + (it - 1);
     if (bedrock)
       ERG_LAUNCH(donor_kernel<true>, l1.grid, l1.block, g_, grow1, off, h_a_.get(), nullptr,
-                 m_.tan_l_bedrock, nullptr, kc, frac_.get(), out_.get(), moved, donors);
+                 m_.tan_l_bedrock, nullptr, obstacles_.get(), kc, frac_.get(), out_.get(), moved,
+                 donors);
     else
       ERG_LAUNCH(donor_kernel<false>, l1.grid, l1.block, g_, grow1, off, h_a_.get(), tan_l_.get(),
-                 0.0f, sand_.get(), kc, frac_.get(), out_.get(), moved, donors);
+                 0.0f, sand_.get(), obstacles_.get(), kc, frac_.get(), out_.get(), moved, donors);
 
     if (bedrock)
       ERG_LAUNCH(inflow_kernel<true>, l2.grid, l2.block, g_, grow2, off, h_a_.get(), nullptr,
                  m_.tan_l_bedrock, frac_.get(), out_.get(), m_.bedrock_to_sand, target.get(),
-                 sand_.get(), bedrock_.get(), h_b_.get());
+                 sand_.get(), bedrock_.get(), obstacles_.get(), h_b_.get());
     else
       ERG_LAUNCH(inflow_kernel<false>, l2.grid, l2.block, g_, grow2, off, h_a_.get(), tan_l_.get(),
                  0.0f, frac_.get(), out_.get(), false, target.get(), sand_.get(), bedrock_.get(),
-                 h_b_.get());
+                 obstacles_.get(), h_b_.get());
     h_a_.swap(h_b_);
   }
 

@@ -170,14 +170,17 @@ __global__ void repose_kernel(TileGeom g, const float* vegetation, float* tan_l,
 }
 
 // One block per row; the row's exact change goes to row_change[y].
-__global__ void sand_brush_kernel(TileGeom g, events::Brush b, units_t* sand, total_t* row_change) {
+__global__ void sand_brush_kernel(TileGeom g, events::Brush b, units_t* sand, const float* ob,
+                                  total_t* row_change) {
   __shared__ total_t red[kRowThreads];
   const int y = static_cast<int>(blockIdx.x);
   units_t* s = sand + g.at(0, y);
+  const float* o = ob + g.at(0, y);
   total_t change = 0;
   for (int x = static_cast<int>(threadIdx.x); x < g.nx; x += kRowThreads) {
     units_t d = events::brush_units(b, centre_x(g, x), centre_y(g, y));
-    if (d < -s[x]) d = -s[x];  // never below bare ground
+    if (d < -s[x]) d = -s[x];                 // never below bare ground
+    if (obstacles::is_obstacle(o[x])) d = 0;  // obstacles hold no sand
     s[x] += d;
     change += d;
   }
@@ -257,10 +260,12 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
   airborne_.reset(n);
   vegetation_.reset(n);
   resistance_.reset(n);
+  obstacles_.reset(n);
   height_m_.reset(n);
   wind_x_.reset(n);
   wind_y_.reset(n);
   shadow_.reset(n);
+  echo_.reset(n);
   landed_.reset(n);
   reptation_.reset(n);
   tan_l_.reset(n);
@@ -330,7 +335,47 @@ void CudaBackend::upload(const TileState& s) {
   copy_in(airborne_, s.airborne, "airborne");
   copy_in(vegetation_, s.vegetation, "vegetation");
   copy_in(resistance_, s.resistance, "resistance");
+  copy_in(obstacles_, s.obstacles, "obstacles");
   update_repose();
+  obstacles_changed();
+}
+
+void CudaBackend::obstacles_changed() {
+  fill(obstacles_, g_.halo);
+  Field<float> o;
+  copy_out(obstacles_, o, g_);
+  bool any = false;
+  for (std::size_t i = 0; i < o.size(); ++i) any |= obstacles::is_obstacle(o.data()[i]);
+  any_obstacles_ = any;
+}
+
+// Rare (timeline events): on the host, as the CPU backend does it.
+total_t CudaBackend::set_obstacle(const obstacles::Shape& sh, bool remove) {
+  Field<float> o;
+  Field<units_t> s, a;
+  copy_out(obstacles_, o, g_);
+  copy_out(sand_, s, g_);
+  copy_out(airborne_, a, g_);
+  total_t change = 0;
+  for (int y = 0; y < g_.ny; ++y)
+    for (int x = 0; x < g_.nx; ++x) {
+      if (!obstacles::covers(sh, centre_x(g_, x), centre_y(g_, y))) continue;
+      if (remove) {
+        o(x, y) = 0.0f;
+      } else {
+        o(x, y) = std::max(o(x, y), sh.height_m);
+        change -= s(x, y) + a(x, y);  // an obstacle holds no sand, on the ground or in the air
+        s(x, y) = 0;
+        a(x, y) = 0;
+      }
+    }
+  copy_in(obstacles_, o, "obstacles");
+  copy_in(sand_, s, "sand");
+  copy_in(airborne_, a, "airborne");
+  obstacles_changed();
+  std::vector<total_t> all{change};
+  ex_.sum_exact(all);
+  return all[0];
 }
 
 void CudaBackend::download(TileState& s) {
@@ -340,6 +385,7 @@ void CudaBackend::download(TileState& s) {
   copy_out(airborne_, s.airborne, g_);
   copy_out(vegetation_, s.vegetation, g_);
   copy_out(resistance_, s.resistance, g_);
+  copy_out(obstacles_, s.obstacles, g_);
 }
 
 void CudaBackend::download_wind(std::vector<float>& wind_xy) {
@@ -378,7 +424,7 @@ total_t CudaBackend::sum_rows(int first, int count) const {
 
 total_t CudaBackend::apply_sand_brush(const events::Brush& b) {
   ERG_LAUNCH(sand_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, sand_.get(),
-             row_sums_.get());
+             obstacles_.get(), row_sums_.get());
   fetch_rows(g_.ny);
   std::vector<total_t> all{sum_rows(0, g_.ny)};
   ex_.sum_exact(all);

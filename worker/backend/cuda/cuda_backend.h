@@ -207,6 +207,7 @@ class CudaBackend final : public Backend {
   total_t apply_sand_brush(const events::Brush& b) override;
   total_t apply_bedrock_brush(const events::Brush& b) override;
   void set_vegetation(const events::Region& r) override;
+  total_t set_obstacle(const obstacles::Shape& s, bool remove) override;
   Totals totals() override;
   void synchronize() override;
 
@@ -232,9 +233,13 @@ class CudaBackend final : public Backend {
   // exact state (padded, TileGeom::at layout)
   DeviceBuffer<units_t> bedrock_, sand_, airborne_;
   DeviceBuffer<float> vegetation_, resistance_;
+  DeviceBuffer<float> obstacles_;  // obstacle heights, ghosts filled over the whole halo
+  bool any_obstacles_ = false;     // on this tile or its ghosts (saltation's slow path)
+  void obstacles_changed();        // refills the ghosts, updates any_obstacles_
   // derived each step
   DeviceBuffer<float> height_m_;  // b + s in metres, halo filled for the shadow march
   DeviceBuffer<float> wind_x_, wind_y_, shadow_;
+  DeviceBuffer<float> echo_;       // echo-dune classification r_e (stages/echo_dunes.h); 0 when off
   DeviceBuffer<units_t> landed_;   // saltation scatter target (halo for the hop reach)
   DeviceBuffer<float> reptation_;  // s_r
   DeviceBuffer<float> tan_l_;      // tan(repose(v)) * l for sand

@@ -10,7 +10,7 @@ namespace {
 
 __global__ void reptation_kernel(TileGeom g, int grow, Offsets off, float k_r,
                                  const units_t* bedrock, const units_t* sand, const float* strength,
-                                 units_t* next) {
+                                 const float* ob, units_t* next) {
   int x, y;
   if (!grown_cell(g, grow, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
@@ -21,8 +21,8 @@ __global__ void reptation_kernel(TileGeom g, int grow, Offsets off, float k_r,
     const long long j = i + off.o[k];
     const units_t hj = bedrock[j] + sand[j];
     // The higher cell donates; both sides evaluate the same exchange.
-    delta += reptation::exchange(hi, hj, strength[i], strength[j], sand[i], sand[j],
-                                 l * neighbour(k).dist, k_r);
+    delta += reptation::exchange_free(hi, hj, strength[i], strength[j], sand[i], sand[j],
+                                      l * neighbour(k).dist, k_r, ob[i], ob[j]);
   }
   next[i] = sand[i] + delta;
 }
@@ -41,7 +41,8 @@ void CudaBackend::reptation() {
   const int grow = w - 1;
   const Launch l = grown_cells(g_, grow);
   ERG_LAUNCH(reptation_kernel, l.grid, l.block, g_, grow, neighbour_offsets(g_.pitch),
-             m_.reptation_k, bedrock_.get(), sand_.get(), reptation_.get(), sand_next_.get());
+             m_.reptation_k, bedrock_.get(), sand_.get(), reptation_.get(), obstacles_.get(),
+             sand_next_.get());
   sand_.swap(sand_next_);
 }
 

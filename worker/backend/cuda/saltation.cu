@@ -5,6 +5,7 @@
 // record the reptation strength.
 #include "backend/cuda/cuda_backend.h"
 #include "core/philox.h"
+#include "stages/obstacles.h"
 #include "stages/saltation.h"
 
 namespace erg::gpu {
@@ -19,7 +20,8 @@ __device__ __forceinline__ void add_units(units_t* cell, units_t q) {
 // (1) Lift (last step's bounces are already in the airborne buffer).
 __global__ void lift_kernel(TileGeom g, saltation::Params p, std::uint64_t seed, std::uint64_t step,
                             units_t* sand, units_t* airborne, const float* shadow,
-                            const float* vegetation, const float* wind_x, const float* wind_y) {
+                            const float* vegetation, const float* wind_x, const float* wind_y,
+                            const float* echo) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -27,9 +29,9 @@ __global__ void lift_kernel(TileGeom g, saltation::Params p, std::uint64_t seed,
   units_t q;
   if (p.stochastic) {
     const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLift).v[0]);
-    q = saltation::lift_stochastic(sand[i], shadow[i], vegetation[i], speed, u, p);
+    q = saltation::lift_stochastic(sand[i], shadow[i], vegetation[i], speed, u, p, echo[i]);
   } else {
-    q = saltation::lift_expected(sand[i], shadow[i], vegetation[i], speed, p);
+    q = saltation::lift_expected(sand[i], shadow[i], vegetation[i], speed, p, echo[i]);
   }
   sand[i] -= q;
   airborne[i] += q;
@@ -38,7 +40,8 @@ __global__ void lift_kernel(TileGeom g, saltation::Params p, std::uint64_t seed,
 // (2) One hop downwind into `landed` (owned + ghosts).
 __global__ void scatter_kernel(TileGeom g, saltation::Params p, std::uint64_t seed,
                                std::uint64_t step, units_t* airborne, const float* wind_x,
-                               const float* wind_y, units_t* landed) {
+                               const float* wind_y, const float* ob, bool any_obstacles,
+                               units_t* landed) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -46,6 +49,29 @@ __global__ void scatter_kernel(TileGeom g, saltation::Params p, std::uint64_t se
   if (a == 0) return;
   airborne[i] = 0;
   const saltation::Landing L = saltation::landing(x, y, {wind_x[i], wind_y[i]}, p);
+  if (any_obstacles) {
+    // Hops never land in an obstacle [BR04 4.1] (stages/obstacles.h), as on the CPU.
+    const float* o_base = ob + g.at(0, 0);
+    const obstacles::Path path =
+        obstacles::hop_path(o_base, g.pitch, x, y, static_cast<float>(L.x0 - x) + L.fx,
+                            static_cast<float>(L.y0 - y) + L.fy);
+    if (p.stochastic) {
+      const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLanding).v[0]);
+      const int k = saltation::pick_corner(L.fx, L.fy, u);
+      const obstacles::Cell c =
+          obstacles::receiver(o_base, g.pitch, L.x0 + (k & 1), L.y0 + (k >> 1), path);
+      add_units(landed + g.at(c.x, c.y), a);
+    } else {
+      units_t q[4];
+      saltation::split_bilinear(a, L.fx, L.fy, q);
+      for (int k = 0; k < 4; ++k) {
+        const obstacles::Cell c =
+            obstacles::receiver(o_base, g.pitch, L.x0 + (k & 1), L.y0 + (k >> 1), path);
+        add_units(landed + g.at(c.x, c.y), q[k]);
+      }
+    }
+    return;
+  }
   if (p.stochastic) {
     const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLanding).v[0]);
     const int k = saltation::pick_corner(L.fx, L.fy, u);
@@ -65,7 +91,7 @@ __global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t see
                               std::uint64_t step, const units_t* landed, units_t* sand,
                               units_t* bedrock, units_t* airborne, const float* shadow,
                               const float* vegetation, const float* resistance, const float* wind_x,
-                              const float* wind_y, float* reptation) {
+                              const float* wind_y, const float* echo, float* reptation) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -75,7 +101,7 @@ __global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t see
     u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kDeposit).v[0]);
   const saltation::Impact im =
       saltation::impact(in, sand[i], shadow[i], vegetation[i], resistance[i],
-                        length(Vec2{wind_x[i], wind_y[i]}), u, p);
+                        length(Vec2{wind_x[i], wind_y[i]}), u, p, echo[i]);
   sand[i] += im.deposited + im.abraded;
   bedrock[i] -= im.abraded;
   airborne[i] = im.bounced;
@@ -91,17 +117,17 @@ void CudaBackend::saltation(std::int64_t step) {
   const Launch l = owned_cells(g_);
 
   ERG_LAUNCH(lift_kernel, l.grid, l.block, g_, p, seed, ustep, sand_.get(), airborne_.get(),
-             shadow_.get(), vegetation_.get(), wind_x_.get(), wind_y_.get());
+             shadow_.get(), vegetation_.get(), wind_x_.get(), wind_y_.get(), echo_.get());
 
   ERG_CUDA_CHECK(cudaMemsetAsync(landed_.get(), 0, landed_.bytes()));
   ERG_LAUNCH(scatter_kernel, l.grid, l.block, g_, p, seed, ustep, airborne_.get(), wind_x_.get(),
-             wind_y_.get(), landed_.get());
+             wind_y_.get(), obstacles_.get(), any_obstacles_, landed_.get());
   // Sand that left the tile re-enters on the opposite side (the torus).
   sum(landed_, m_.halo_saltation());
 
   ERG_LAUNCH(impact_kernel, l.grid, l.block, g_, p, seed, ustep, landed_.get(), sand_.get(),
              bedrock_.get(), airborne_.get(), shadow_.get(), vegetation_.get(), resistance_.get(),
-             wind_x_.get(), wind_y_.get(), reptation_.get());
+             wind_x_.get(), wind_y_.get(), echo_.get(), reptation_.get());
 }
 
 }  // namespace erg::gpu

@@ -15,27 +15,30 @@ namespace {
 constexpr double kTwoPi = 6.283185307179586;
 constexpr int kCoarseThreads = kRowThreads;  // block_sum needs kRowThreads
 
-__global__ void heights_kernel(TileGeom g, const units_t* bedrock, const units_t* sand, float* h) {
+__global__ void heights_kernel(TileGeom g, const units_t* bedrock, const units_t* sand,
+                               const float* ob, float* h) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
-  h[i] = units_to_m(bedrock[i] + sand[i]);
+  // The wind sees obstacles as terrain [BR04 4.3] (stages/obstacles.h).
+  h[i] = units_to_m(bedrock[i] + sand[i]) + ob[i];
 }
 
 // One block per coarse cell (I, J) of this tile (tiles are aligned to coarse
 // cells), blocks in row-major order: the exact sum of b + s over its fine
 // cells (128-bit, as on the CPU), then the mean height in metres.
 __global__ void coarse_sum_kernel(TileGeom g, CoarseGrid c, int tile_cnx, const units_t* bedrock,
-                                  const units_t* sand, double* coarse_h) {
+                                  const units_t* sand, const float* ob, double* coarse_h) {
   __shared__ total_t red[kCoarseThreads];
-  const int I = static_cast<int>(blockIdx.x % tile_cnx), J = static_cast<int>(blockIdx.x / tile_cnx);
+  const int I = static_cast<int>(blockIdx.x % tile_cnx),
+            J = static_cast<int>(blockIdx.x / tile_cnx);
   const long long cells = static_cast<long long>(c.cx) * c.cy;
   total_t sum = 0;
   for (long long t = threadIdx.x; t < cells; t += kCoarseThreads) {
     const int y = J * c.cy + static_cast<int>(t / c.cx);
     const int x = I * c.cx + static_cast<int>(t % c.cx);
     const std::size_t i = g.at(x, y);
-    sum += bedrock[i] + sand[i];
+    sum += bedrock[i] + sand[i] + obstacles::height_units(ob[i]);
   }
   sum = block_sum(sum, red);
   if (threadIdx.x == 0)
@@ -119,14 +122,14 @@ void CudaBackend::wind(Vec2 a) {
   const Launch cells = owned_cells(g_);
   // Heights in metres (owned + the ghosts the shadow march reads).
   ERG_LAUNCH(heights_kernel, cells.grid, cells.block, g_, bedrock_.get(), sand_.get(),
-             height_m_.get());
+             obstacles_.get(), height_m_.get());
   fill(height_m_, m_.halo_shadow());
 
   // Exact block sums of this tile's coarse cells; every tile gets the whole
   // coarse grid (the same integer sums whatever the tiling).
   const int tcnx = g_.nx / c.cx, tcny = g_.ny / c.cy;
   ERG_LAUNCH(coarse_sum_kernel, dim3(static_cast<unsigned>(tcnx * tcny)), dim3(kCoarseThreads), g_,
-             c, tcnx, bedrock_.get(), sand_.get(), coarse_mine_.get());
+             c, tcnx, bedrock_.get(), sand_.get(), obstacles_.get(), coarse_mine_.get());
   std::vector<double> mine(coarse_mine_.size()), all;
   ERG_CUDA_CHECK(
       cudaMemcpy(mine.data(), coarse_mine_.get(), coarse_mine_.bytes(), cudaMemcpyDeviceToHost));
