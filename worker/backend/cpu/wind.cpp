@@ -1,10 +1,12 @@
 // Surface wind on the CPU: venturi and multi-scale warping
-// (stages/venturi.h, stages/wind_warping.h).
+// (stages/venturi.h, stages/wind_warping.h), then the local wind primitives
+// (stages/wind_primitives.h).
 #include <cmath>
 #include <vector>
 
 #include "backend/cpu/cpu_backend.h"
 #include "stages/venturi.h"
+#include "stages/wind_primitives.h"
 #include "stages/wind_warping.h"
 
 namespace erg::cpu {
@@ -156,6 +158,23 @@ void CpuBackend::wind(Vec2 a) {
              rows.data() + 2 * c.nx, rows.data() + 3 * c.nx);
   }
   ex_.finish_fill(height_m_, m_.halo_shadow());
+}
+
+// Every owned cell from its global index only: no ghosts are read, and the
+// result does not depend on the tiling or the thread count.
+void CpuBackend::perturb_wind(const std::vector<wind_primitives::Batch>& batches) {
+  for (const wind_primitives::Batch& b : batches) {
+#pragma omp parallel for num_threads(threads_) schedule(static)
+    for (int y = 0; y < g_.ny; ++y) {
+      float* wx = wind_x_.row(y);
+      float* wy = wind_y_.row(y);
+      for (int x = 0; x < g_.nx; ++x) {
+        const Vec2 w = wind_primitives::add_batch({wx[x], wy[x]}, b, g_.x0 + x, g_.y0 + y);
+        wx[x] = w.x;
+        wy[x] = w.y;
+      }
+    }
+  }
 }
 
 }  // namespace erg::cpu
