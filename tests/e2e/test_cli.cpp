@@ -266,7 +266,7 @@ TEST_P(Example, Runs) {
 }
 INSTANTIATE_TEST_SUITE_P(Examples, Example,
                          ::testing::Values("barchans", "transverse", "linear", "star", "nabkha",
-                                           "yardangs"));
+                                           "yardangs", "vortex"));
 
 }  // namespace
 

@@ -266,10 +266,10 @@ void check_wind_primitive(const erg::v1::WindPrimitive& w, const std::string& pa
       const auto& v = w.vortex();
       // Resolved by the grid, and small enough that only the nearest
       // periodic images reach the domain (wind_primitives::vortex_psi).
-      if (v.radius_m() < 2 * l || v.radius_m() > 0.3 * lmin)
+      if (v.radius_m() < 2 * l || v.radius_m() > 3.0 * lmin / 10.0)
         out.push_back(path + ".vortex.radius_m = " + num(v.radius_m()) +
                       " m is out of range for this domain; allowed [" + num(2 * l) + ", " +
-                      num(0.3 * lmin) + "] m (2 cells to 0.3 of the shorter side)");
+                      num(3.0 * lmin / 10.0) + "] m (2 cells to 0.3 of the shorter side)");
       break;
     }
     case erg::v1::WindPrimitive::kTurbulence: {
