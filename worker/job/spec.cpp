@@ -8,6 +8,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <set>
 #include <sstream>
 
 #include "io/io.h"
@@ -442,6 +444,19 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
     check_wind_primitive(spec.wind_primitives(k), "wind_primitives[" + std::to_string(k) + "]",
                          spec, out);
 
+  // Where each wind primitive name first appears on the timeline (step, then
+  // file order), for the removals.
+  std::set<std::string> in_job;
+  for (const auto& w : spec.wind_primitives()) in_job.insert(w.name());
+  std::map<std::string, std::pair<std::int64_t, int>> first_added;
+  for (int k = 0; k < spec.events_size(); ++k) {
+    const auto& e = spec.events(k);
+    if (e.action_case() != erg::v1::Event::kWindPrimitive) continue;
+    const auto key = std::make_pair(static_cast<std::int64_t>(e.step()), k);
+    auto [it, inserted] = first_added.emplace(e.wind_primitive().name(), key);
+    if (!inserted && key < it->second) it->second = key;
+  }
+
   for (int k = 0; k < spec.events_size(); ++k) {
     const auto& e = spec.events(k);
     const std::string p = "events[" + std::to_string(k) + "]";
@@ -458,14 +473,9 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
         // It must name a primitive of the job or of an event before it on
         // the timeline (an earlier step, or the same step earlier in the list).
         const std::string& name = e.remove_wind_primitive();
-        bool found = false;
-        for (const auto& w : spec.wind_primitives()) found = found || w.name() == name;
-        for (int j = 0; j < spec.events_size() && !found; ++j) {
-          const auto& o = spec.events(j);
-          const bool before = o.step() < e.step() || (o.step() == e.step() && j < k);
-          found = before && o.action_case() == erg::v1::Event::kWindPrimitive &&
-                  o.wind_primitive().name() == name;
-        }
+        const auto first = first_added.find(name);
+        const bool found = in_job.count(name) > 0 || (first != first_added.end() &&
+                                                      first->second < std::make_pair(e.step(), k));
         if (name.empty() || !found)
           out.push_back(p + ".remove_wind_primitive = \"" + name +
                         "\" names no wind primitive of the job or of an earlier event");
