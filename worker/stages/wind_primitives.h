@@ -50,17 +50,21 @@ struct Primitive {
   int gnx = 1, gny = 1;       // domain in cells (corner indices wrap)
   double cell_m = 1;          // l
   double lx_m = 1, ly_m = 1;  // domain extent
-  double cx_m = 0, cy_m = 0;  // vortex centre; turbulence region centre
+  double cx_m = 0, cy_m = 0;  // vortex centre; turbulence region centre; in [0, L)
   double amp = 0;             // psi scale (m^2/s), envelope included
   // vortex
   double radius_m = 1, exponent = 2;
   // turbulence
   double region_m = -1;                 // region radius; < 0: the whole domain
   double falloff_m = 1;                 // smooth edge inside region_m
-  double shift_x_m = 0, shift_y_m = 0;  // drift of the pattern
+  double shift_x_m = 0, shift_y_m = 0;  // drift of the pattern, in [0, L)
   double w1 = 1, w2 = 0;                // blend of the two noise fields (cos, sin)
   int px = 1, py = 1;                   // noise lattice cells along x and y
   std::uint32_t seed1 = 0, seed2 = 0;
+  // The cells psi can reach, a box on the torus: cells bx0 .. bx0 + bw - 1
+  // (wrapping; bx0 in [0, gnx), bw = gnx: every column), the same for y.
+  // Outside it a primitive leaves the wind untouched.
+  int bx0 = 0, bw = 1, by0 = 0, bh = 1;
 };
 
 // Primitives are applied in batches of this many per pass (one kernel launch
@@ -71,11 +75,22 @@ struct Batch {
   int n = 0;
 };
 
+// d = x - c with x and c in [0, period): into [-period/2, period/2).
 ERG_HD double wrap_delta(double d, double period) {
-  d = fmod(d, period);
   if (d >= 0.5 * period) d -= period;
   if (d < -0.5 * period) d += period;
   return d;
+}
+
+// Whether global cell g is in the span b0 .. b0 + w - 1 of an axis of n
+// cells (g and b0 in [0, n)).
+ERG_HD bool in_span(int g, int b0, int w, int n) {
+  int d = g - b0;
+  if (d < 0) d += n;
+  return d < w;
+}
+ERG_HD bool covers(const Primitive& P, int gx, int gy) {
+  return in_span(gx, P.bx0, P.bw, P.gnx) && in_span(gy, P.by0, P.bh, P.gny);
 }
 
 ERG_HD double smoothstep01(double t) {
@@ -87,7 +102,7 @@ ERG_HD double smoothstep01(double t) {
 // at s = 1 with value -e^(-1/p).
 ERG_HD double vortex_profile(double s, double p) {
   if (s >= kSupport) return 0.0;
-  const double g = exp(-pow(s, p) / p);
+  const double g = p == 2.0 ? exp(-0.5 * (s * s)) : exp(-pow(s, p) / p);
   return s <= kTaperStart ? g : g * smoothstep01(kSupport - s);
 }
 
@@ -128,8 +143,10 @@ ERG_HD std::uint32_t hash3(std::uint32_t a, std::uint32_t b, std::uint32_t c) {
 // unit gradients picked by the hash (no trigonometry per point).
 ERG_HD double lattice_dot(long long i, long long j, int px, int py, std::uint32_t seed, double du,
                           double dv) {
-  const std::uint32_t gi = static_cast<std::uint32_t>(((i % px) + px) % px);
-  const std::uint32_t gj = static_cast<std::uint32_t>(((j % py) + py) % py);
+  // i in [-px, 2px] and j in [-py, 2py] (corners and shift inside the domain).
+  i = i < 0 ? i + px : (i >= px ? i - px : i);
+  j = j < 0 ? j + py : (j >= py ? j - py : j);
+  const std::uint32_t gi = static_cast<std::uint32_t>(i), gj = static_cast<std::uint32_t>(j);
   const std::uint32_t h = hash3(gi, gj, seed) & 7u;
   const double s = 0.7071067811865476;
   const double gx = h == 0 ? 1.0 : h == 1 ? -1.0 : h < 4 ? 0.0 : ((h & 1u) ? -s : s);
@@ -171,10 +188,8 @@ ERG_HD double turbulence_psi(const Primitive& P, double x, double y) {
 
 // psi at global corner (ci, cj), wrapped onto the torus.
 ERG_HD double psi_at_corner(const Primitive& P, int ci, int cj) {
-  ci = ci % P.gnx;
-  cj = cj % P.gny;
-  if (ci < 0) ci += P.gnx;
-  if (cj < 0) cj += P.gny;
+  ci = ci < 0 ? ci + P.gnx : (ci >= P.gnx ? ci - P.gnx : ci);  // ci in [-gnx, 2 gnx)
+  cj = cj < 0 ? cj + P.gny : (cj >= P.gny ? cj - P.gny : cj);
   const double x = ci * P.cell_m, y = cj * P.cell_m;
   return P.kind == kVortex ? vortex_psi(P, x, y) : turbulence_psi(P, x, y);
 }
@@ -183,12 +198,14 @@ struct Velocity {
   double x, y;
 };
 
-// The discrete curl at global cell (gx, gy) (operator above).
-ERG_HD Velocity velocity_at(const Primitive& P, int gx, int gy) {
-  const double p00 = psi_at_corner(P, gx, gy), p10 = psi_at_corner(P, gx + 1, gy);
-  const double p01 = psi_at_corner(P, gx, gy + 1), p11 = psi_at_corner(P, gx + 1, gy + 1);
-  const double inv = 0.5 / P.cell_m;
+// The discrete curl of one cell from psi at its corners (operator above).
+ERG_HD Velocity curl_of_corners(double p00, double p10, double p01, double p11, double cell_m) {
+  const double inv = 0.5 / cell_m;
   return {((p01 + p11) - (p00 + p10)) * inv, -((p10 + p11) - (p00 + p01)) * inv};
+}
+ERG_HD Velocity velocity_at(const Primitive& P, int gx, int gy) {
+  return curl_of_corners(psi_at_corner(P, gx, gy), psi_at_corner(P, gx + 1, gy),
+                         psi_at_corner(P, gx, gy + 1), psi_at_corner(P, gx + 1, gy + 1), P.cell_m);
 }
 
 // The matching divergence at global corner (ci, cj), from the velocities of
@@ -199,15 +216,20 @@ ERG_HD double divergence_at_corner(Velocity u00, Velocity u10, Velocity u01, Vel
   return ((u10.x + u11.x) - (u00.x + u01.x)) * inv + ((u01.y + u11.y) - (u00.y + u10.y)) * inv;
 }
 
-// The wind of global cell (gx, gy) plus the batch's perturbation, summed in
-// batch order in double and added once.
+// The wind of global cell (gx, gy) plus the perturbation of the batch's
+// primitives whose box covers it, summed in batch order in double and added
+// once; untouched when none does (so a backend may skip those cells).
 ERG_HD Vec2 add_batch(Vec2 w, const Batch& b, int gx, int gy) {
   double ux = 0.0, uy = 0.0;
+  bool any = false;
   for (int k = 0; k < b.n; ++k) {
+    if (!covers(b.p[k], gx, gy)) continue;
     const Velocity u = velocity_at(b.p[k], gx, gy);
     ux += u.x;
     uy += u.y;
+    any = true;
   }
+  if (!any) return w;
   return {w.x + static_cast<float>(ux), w.y + static_cast<float>(uy)};
 }
 

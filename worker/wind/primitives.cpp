@@ -15,6 +15,27 @@ struct Placed {
   std::int64_t origin;
 };
 
+// x into [0, period).
+double wrap_into(double x, double period) {
+  x = std::fmod(x, period);
+  if (x < 0) x += period;
+  return x < period ? x : 0.0;
+}
+
+// The cells within `reach_m` of a centre along one axis (conservative by a
+// cell on each side): first cell and count, or the whole axis.
+void span_of(double centre_m, double reach_m, double cell_m, int n, int& b0, int& w) {
+  const double first = std::floor((centre_m - reach_m) / cell_m) - 1.0;
+  const double count = std::ceil(2.0 * reach_m / cell_m) + 3.0;
+  if (count >= n) {
+    b0 = 0;
+    w = n;
+    return;
+  }
+  b0 = static_cast<int>(wrap_into(first, n));
+  w = static_cast<int>(count);
+}
+
 wind_primitives::Primitive resolve(const erg::v1::JobSpec& spec, const Placed& pl,
                                    std::int64_t step, double env) {
   namespace wp = wind_primitives;
@@ -35,6 +56,11 @@ wind_primitives::Primitive resolve(const erg::v1::JobSpec& spec, const Placed& p
     // |d psi / dr| peaks at r = R with amp e^(-1/p) / R: amp = U R e^(1/p).
     const double sense = v.rotation() == erg::v1::Vortex::CLOCKWISE ? -1.0 : 1.0;
     P.amp = env * sense * v.peak_speed_mps() * v.radius_m() * std::exp(1.0 / P.exponent);
+    P.cx_m = wrap_into(P.cx_m, P.lx_m);
+    P.cy_m = wrap_into(P.cy_m, P.ly_m);
+    const double reach = wp::kSupport * P.radius_m;
+    span_of(P.cx_m, reach, P.cell_m, P.gnx, P.bx0, P.bw);
+    span_of(P.cy_m, reach, P.cell_m, P.gny, P.by0, P.bh);
     return P;
   }
   const auto& t = w.turbulence();
@@ -58,8 +84,17 @@ wind_primitives::Primitive resolve(const erg::v1::JobSpec& spec, const Placed& p
     P.w2 = std::sin(phase);
   }
   const Vec2 d = direction(t.drift_direction_deg());
-  P.shift_x_m = std::fmod(t.drift_m_per_step() * local * d.x, P.lx_m);
-  P.shift_y_m = std::fmod(t.drift_m_per_step() * local * d.y, P.ly_m);
+  P.shift_x_m = wrap_into(t.drift_m_per_step() * local * d.x, P.lx_m);
+  P.shift_y_m = wrap_into(t.drift_m_per_step() * local * d.y, P.ly_m);
+  P.cx_m = wrap_into(P.cx_m, P.lx_m);
+  P.cy_m = wrap_into(P.cy_m, P.ly_m);
+  if (P.region_m >= 0) {
+    span_of(P.cx_m, P.region_m, P.cell_m, P.gnx, P.bx0, P.bw);
+    span_of(P.cy_m, P.region_m, P.cell_m, P.gny, P.by0, P.bh);
+  } else {
+    P.bw = P.gnx;
+    P.bh = P.gny;
+  }
   const auto seed = static_cast<std::uint64_t>(spec.seed()) +
                     static_cast<std::uint64_t>(t.seed_offset()) * 0x9E3779B97F4A7C15ull;
   P.seed1 = static_cast<std::uint32_t>(seed ^ (seed >> 32)) ^ 0x5EEDC0DEu;
