@@ -1,9 +1,10 @@
 // The tiled worker (issue 3): the same job on 1, 2, 3, 4 and 6 MPI ranks
 // gives identical exact state and identical snapshot datasets after every
 // snapshot, in both transport modes, with abrasion, vegetation, events, a
-// wind rose and local wind primitives (over the seams, added and removed) on; a restart on another rank count continues bitwise; a rank
-// killed mid-run leaves the previous snapshot and checkpoint intact; a bad
-// tile grid is refused on every rank without hanging.
+// wind rose and local wind primitives (over the seams, added and removed)
+// on; a restart on another rank count continues bitwise; a rank killed
+// mid-run leaves the previous snapshot and checkpoint intact; a bad tile
+// grid is refused on every rank without hanging.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
