@@ -273,7 +273,7 @@ TEST_P(Example, Runs) {
 }
 INSTANTIATE_TEST_SUITE_P(Examples, Example,
                          ::testing::Values("barchans", "transverse", "linear", "star", "nabkha",
-                                           "yardangs", "echo_dune"));
+                                           "yardangs", "echo_dune", "vortex"));
 
 }  // namespace
 

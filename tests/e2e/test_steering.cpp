@@ -258,6 +258,53 @@ TEST(Steering, BadEventsAreRejectedAndTheRunGoesOn) {
   expect_same_snapshots(t / "out", t / "plain", {"00000060"}, "rejected steering");
 }
 
+// Wind primitives [P19 4.4] by steering: a vortex added before the run, one
+// removal of a name that does not exist rejected, the vortex removed while
+// the run goes on; the recorded job replays to the same bits.
+TEST(Steering, WindPrimitivesAreAddedAndRemoved) {
+  TempDir t("erg_steer");
+  write(t / "job.json", job(60, 20));
+  const std::string steer = t / "steer";
+  fs::create_directories(steer);
+  Result r =
+      run(kWorker + " " + (t / "job.json") + " --out " + (t / "plain") + " --quiet --threads 1");
+  ASSERT_EQ(r.code, 0) << r.output;
+  drop(steer, "a.json", R"({"wind_primitive": {"name": "eddy", "vortex": {"x_m": 32, "y_m": 32,
+      "radius_m": 10, "peak_speed_mps": 4, "rotation": "CLOCKWISE"}}})");
+  drop(steer, "b.json", R"({"remove_wind_primitive": "gust"})");
+  r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "steered") + " --steer-dir " + steer +
+              " --progress-fd 1 --threads 1",
+          [&](const std::string& line, pid_t pid) {
+            if (line.find("\"event\":\"snapshot\",\"step\":20,") == std::string::npos) return;
+            ::kill(pid, SIGSTOP);
+            drop(steer, "c.json", R"({"remove_wind_primitive": "eddy"})");
+            ::kill(pid, SIGCONT);
+          });
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(steer + "/a.applied")) << r.output;
+  EXPECT_TRUE(fs::exists(steer + "/b.rejected")) << r.output;
+  EXPECT_TRUE(fs::exists(steer + "/c.applied")) << r.output;
+  const auto rejected = lines_with(r.output, "steer_rejected");
+  ASSERT_EQ(rejected.size(), 1u) << r.output;
+  EXPECT_NE(rejected[0].find("event.remove_wind_primitive = \\\"gust\\\" names no wind primitive"),
+            std::string::npos)
+      << rejected[0];
+  const erg::v1::JobSpec spec = recorded_job(t / "steered");
+  ASSERT_EQ(spec.events_size(), 3);
+  EXPECT_EQ(spec.events(1).step(), 0);
+  EXPECT_EQ(spec.events(1).wind_primitive().name(), "eddy");
+  EXPECT_EQ(spec.events(1).wind_primitive().vortex().rotation(), erg::v1::Vortex::CLOCKWISE);
+  EXPECT_GE(spec.events(2).step(), 20);
+  EXPECT_EQ(spec.events(2).remove_wind_primitive(), "eddy");
+  // The vortex blew: the wind of step 20 differs from the plain run's.
+  EXPECT_FALSE(erg::io::read_snapshot(t / "steered/snapshots/step_00000020.h5").wind ==
+               erg::io::read_snapshot(t / "plain/snapshots/step_00000020.h5").wind);
+  r = run(kWorker + " " + (t / "steered/job.json") + " --out " + (t / "replay") +
+          " --quiet --threads 1");
+  ASSERT_EQ(r.code, 0) << r.output;
+  expect_same_snapshots(t / "steered", t / "replay", kSteps60, "replay of the recorded job");
+}
+
 // A run resumed from a checkpoint written before a steering event takes the
 // event from DIR/job.json and applies it again at its step.
 TEST(Steering, ResumeFromAnOlderCheckpointReappliesRecordedEvents) {

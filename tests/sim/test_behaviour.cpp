@@ -405,5 +405,96 @@ TEST(Behaviour, EchoDuneFormsUpwindOfACliffBehindASandFreeGap) {
   EXPECT_LT(without.gap_m, 0.25 * cliff_m);
 }
 
+// Second moments of the sand thicker than `threshold_m` about its centroid
+// (cells; the dune stays away from the seams).
+struct Moments {
+  double mass = 0, cx = 0, cy = 0, ixx = 0, iyy = 0, ixy = 0;
+  double correlation() const { return ixy / std::sqrt(ixx * iyy); }
+  // Angle of the principal axis, degrees from +x, in (-90, 90].
+  double axis_deg() const { return 0.5 * std::atan2(2 * ixy, ixx - iyy) * 180.0 / kPi; }
+};
+
+Moments sand_moments(const TileState& st, double threshold_m) {
+  const auto s = sand_m(st);
+  const int nx = st.geom.nx, ny = st.geom.ny;
+  Moments m;
+  for (int pass = 0; pass < 2; ++pass) {
+    for (int y = 0; y < ny; ++y)
+      for (int x = 0; x < nx; ++x) {
+        const double v = s[static_cast<size_t>(y) * nx + x];
+        if (v <= threshold_m) continue;
+        const double px = x + 0.5, py = y + 0.5;
+        if (pass == 0) {
+          m.mass += v;
+          m.cx += v * px;
+          m.cy += v * py;
+        } else {
+          const double dx = px - m.cx, dy = py - m.cy;
+          m.ixx += v * dx * dx;
+          m.iyy += v * dy * dy;
+          m.ixy += v * dx * dy;
+        }
+      }
+    if (pass == 0) {
+      m.cx /= m.mass;
+      m.cy /= m.mass;
+    }
+  }
+  return m;
+}
+
+// A sand pile under a steady west wind, with a vortex over it or not [P19 4.4].
+Moments pile_under_vortex(const std::string& rotation) {
+  std::string json = R"({
+      "domain": {"nx": 96, "ny": 96, "cell_size_m": 1.0},
+      "layers": {"sand": {"piles": [{"x_m": 48, "y_m": 48, "height": 5, "radius_m": 16}]}},
+      "wind": {"constant": {"speed_mps": 5}},
+      "run": {"steps": 150})";
+  if (!rotation.empty())
+    json += R"(, "wind_primitives": [{"vortex": {"x_m": 48, "y_m": 48, "radius_m": 12,
+        "peak_speed_mps": 4, "rotation": ")" +
+            rotation + R"("}}])";
+  json += "}";
+  Simulation sim(spec_from(json), ".", cpu_threads(2));
+  for (int i = 0; i < 150; ++i) sim.step();
+  return sand_moments(sim.state(), 0.25);
+}
+
+// A vortex over a pile turns the dune [P19 4.4, Fig. 1]. Without it the
+// dune is mirror symmetric about the wind axis (no xy moment), elongated
+// along the wind, and migrates downwind. Under a vortex of peak speed 4 m/s
+// (the wind is 5 m/s) its principal axis turns across the wind, it stops
+// migrating downwind and drifts sideways: south for a counter-clockwise
+// vortex (which adds to the wind on its south side), north for a clockwise
+// one, as mirror images of each other.
+TEST(Behaviour, VortexOverAPileTurnsTheDune) {
+  const Moments none = pile_under_vortex(""), ccw = pile_under_vortex("COUNTERCLOCKWISE"),
+                cw = pile_under_vortex("CLOCKWISE");
+  for (const auto& [name, m] :
+       {std::pair<const char*, const Moments&>{"none", none}, {"ccw", ccw}, {"cw", cw}}) {
+    RecordProperty(std::string(name) + "_centroid",
+                   std::to_string(m.cx) + " " + std::to_string(m.cy));
+    RecordProperty(std::string(name) + "_iyy_over_ixx", std::to_string(m.iyy / m.ixx));
+    RecordProperty(std::string(name) + "_axis_deg", std::to_string(m.axis_deg()));
+  }
+  // Without the vortex: symmetric, along the wind, moved downwind.
+  EXPECT_LT(std::fabs(none.correlation()), 0.01);
+  EXPECT_LT(std::fabs(none.axis_deg()), 5.0);
+  EXPECT_GT(none.ixx, 1.2 * none.iyy);
+  EXPECT_GT(none.cx, 48 + 3.0);
+  EXPECT_NEAR(none.cy, 48, 0.5);
+  for (const auto& [name, m] : {std::pair<const char*, const Moments&>{"ccw", ccw}, {"cw", cw}}) {
+    // Turned across the wind.
+    EXPECT_GT(std::fabs(m.axis_deg()), 60.0) << name;
+    EXPECT_GT(m.iyy, 2.0 * m.ixx) << name;
+    EXPECT_LT(m.cx, none.cx - 3.0) << name << ": the vortex holds the dune back";
+  }
+  // Sideways, by the sense of rotation, as mirror images.
+  EXPECT_LT(ccw.cy, 48 - 2.0);
+  EXPECT_GT(cw.cy, 48 + 2.0);
+  EXPECT_NEAR(ccw.cy - 48, 48 - cw.cy, 1.0);
+  EXPECT_NEAR(ccw.cx, cw.cx, 1.0);
+}
+
 }  // namespace
 }  // namespace erg::test

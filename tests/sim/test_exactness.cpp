@@ -14,7 +14,8 @@ namespace {
 
 std::string exact_job(const std::string& transport, bool abrasion) {
   // Non-square, with bedrock relief, thin and thick sand, vegetation and
-  // resistance variations, so that every stage and coupling is active.
+  // resistance variations, a vortex over the corner of the torus and an
+  // evolving turbulence [P19 4.4], so that every stage and coupling is active.
   return std::string(R"({
     "domain": {"nx": 72, "ny": 40, "cell_size_m": 1.0},
     "layers": {
@@ -25,6 +26,9 @@ std::string exact_job(const std::string& transport, bool abrasion) {
       "resistance": {"fbm": {"amplitude": 0.5, "offset": 0.5, "wavelength_m": 20, "octaves": 2}}
     },
     "wind": {"constant": {"speed_mps": 6.5, "direction_deg": 30}},
+    "wind_primitives": [{"vortex": {"x_m": 70, "y_m": 38, "radius_m": 6, "peak_speed_mps": 3}},
+                        {"turbulence": {"amplitude_mps": 1, "wavelength_m": 12,
+                                        "period_steps": 50, "drift_m_per_step": 0.2}}],
     "model": {"abrasion_k": )") +
          (abrasion ? "0.05" : "0") + R"(, "avalanche_iterations": 20,
               "bedrock_avalanche_iterations": 1, "bedrock_to_sand": )" +

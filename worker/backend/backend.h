@@ -14,6 +14,7 @@
 #include "sim/state.h"
 #include "stages/events.h"
 #include "stages/obstacles.h"
+#include "stages/wind_primitives.h"
 
 namespace erg {
 
@@ -34,6 +35,9 @@ class Backend {
   // Surface wind: venturi [P19 4.2] and multi-scale warping of the
   // high-altitude wind a, at every owned cell.
   virtual void wind(Vec2 a) = 0;
+  // Local wind primitives [P19 4.4]: adds their curl-of-psi perturbation to
+  // the surface wind at every owned cell, batch after batch.
+  virtual void perturb_wind(const std::vector<wind_primitives::Batch>& batches) = 0;
   // Wind shadow [N24 eq. 4].
   virtual void shadow() = 0;
   // Lift, advection, deposition, bounces and abrasion; leaves the reptation

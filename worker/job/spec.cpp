@@ -3,10 +3,13 @@
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/util/json_util.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <set>
 #include <sstream>
 
 #include "io/io.h"
@@ -243,6 +246,54 @@ void check_wind(const erg::v1::WindRegime& w, const std::string& path,
   }
 }
 
+// A wind primitive [P19 4.4] (stages/wind_primitives.h).
+void check_wind_primitive(const erg::v1::WindPrimitive& w, const std::string& path,
+                          const JobSpec& spec, std::vector<std::string>& out) {
+  const double l = spec.domain().cell_size_m();
+  const double lmin =
+      std::min(static_cast<double>(spec.domain().nx()), static_cast<double>(spec.domain().ny())) *
+      l;
+  if (w.has_end_step() && w.end_step() <= w.start_step())
+    out.push_back(path + ".end_step = " + std::to_string(w.end_step()) +
+                  " must be greater than start_step = " + std::to_string(w.start_step()));
+  else if (w.has_end_step() && 2 * w.ramp_steps() > w.end_step() - w.start_step())
+    out.push_back(path + ".ramp_steps = " + std::to_string(w.ramp_steps()) +
+                  " is more than half of end_step - start_step = " +
+                  std::to_string(w.end_step() - w.start_step()) + "; allowed [0, " +
+                  std::to_string((w.end_step() - w.start_step()) / 2) + "]");
+  switch (w.kind_case()) {
+    case erg::v1::WindPrimitive::KIND_NOT_SET:
+      out.push_back(path + " has no kind; set one of vortex, turbulence");
+      break;
+    case erg::v1::WindPrimitive::kVortex: {
+      const auto& v = w.vortex();
+      // Resolved by the grid, and small enough that only the nearest
+      // periodic images reach the domain (wind_primitives::vortex_psi).
+      if (v.radius_m() < 2 * l || v.radius_m() > 3.0 * lmin / 10.0)
+        out.push_back(path + ".vortex.radius_m = " + num(v.radius_m()) +
+                      " m is out of range for this domain; allowed [" + num(2 * l) + ", " +
+                      num(3.0 * lmin / 10.0) + "] m (2 cells to 0.3 of the shorter side)");
+      break;
+    }
+    case erg::v1::WindPrimitive::kTurbulence: {
+      const auto& t = w.turbulence();
+      if (t.wavelength_m() < 4 * l)
+        out.push_back(path + ".turbulence.wavelength_m = " + num(t.wavelength_m()) +
+                      " m is under 4 cells; allowed >= " + num(4 * l) + " m");
+      if (t.has_radius_m()) {
+        if (t.radius_m() > 0.5 * lmin)
+          out.push_back(path + ".turbulence.radius_m = " + num(t.radius_m()) +
+                        " m exceeds half the shorter side of the domain, " + num(0.5 * lmin) +
+                        " m; leave radius_m out for the whole domain");
+        if (t.falloff_m() > t.radius_m())
+          out.push_back(path + ".turbulence.falloff_m = " + num(t.falloff_m()) +
+                        " exceeds radius_m = " + num(t.radius_m()) + "; allowed (0, radius_m]");
+      }
+      break;
+    }
+  }
+}
+
 void check_layer(const erg::v1::Layer& layer, const std::string& path, const JobSpec& spec,
                  const std::string& base_dir, std::vector<std::string>& out) {
   if (layer.has_uniform() && layer.uniform().min() > layer.uniform().max())
@@ -397,6 +448,23 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
     check_obstacle(layers.obstacles().shapes(k),
                    "layers.obstacles.shapes[" + std::to_string(k) + "]");
 
+  for (int k = 0; k < spec.wind_primitives_size(); ++k)
+    check_wind_primitive(spec.wind_primitives(k), "wind_primitives[" + std::to_string(k) + "]",
+                         spec, out);
+
+  // Where each wind primitive name first appears on the timeline (step, then
+  // file order), for the removals.
+  std::set<std::string> in_job;
+  for (const auto& w : spec.wind_primitives()) in_job.insert(w.name());
+  std::map<std::string, std::pair<std::int64_t, int>> first_added;
+  for (int k = 0; k < spec.events_size(); ++k) {
+    const auto& e = spec.events(k);
+    if (e.action_case() != erg::v1::Event::kWindPrimitive) continue;
+    const auto key = std::make_pair(static_cast<std::int64_t>(e.step()), k);
+    auto [it, inserted] = first_added.emplace(e.wind_primitive().name(), key);
+    if (!inserted && key < it->second) it->second = key;
+  }
+
   for (int k = 0; k < spec.events_size(); ++k) {
     const auto& e = spec.events(k);
     const std::string p = "events[" + std::to_string(k) + "]";
@@ -404,7 +472,7 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
       case erg::v1::Event::ACTION_NOT_SET:
         out.push_back(p +
                       " has no action; set one of sand, bedrock, vegetation, wind, add_obstacle, "
-                      "remove_obstacle");
+                      "remove_obstacle, wind_primitive, remove_wind_primitive");
         break;
       case erg::v1::Event::kAddObstacle:
         check_obstacle(e.add_obstacle(), p + ".add_obstacle");
@@ -412,6 +480,21 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
       case erg::v1::Event::kRemoveObstacle:
         check_obstacle(e.remove_obstacle(), p + ".remove_obstacle");
         break;
+      case erg::v1::Event::kWindPrimitive:
+        check_wind_primitive(e.wind_primitive(), p + ".wind_primitive", spec, out);
+        break;
+      case erg::v1::Event::kRemoveWindPrimitive: {
+        // It must name a primitive of the job or of an event before it on
+        // the timeline (an earlier step, or the same step earlier in the list).
+        const std::string& name = e.remove_wind_primitive();
+        const auto first = first_added.find(name);
+        const bool found = in_job.count(name) > 0 || (first != first_added.end() &&
+                                                      first->second < std::make_pair(e.step(), k));
+        if (name.empty() || !found)
+          out.push_back(p + ".remove_wind_primitive = \"" + name +
+                        "\" names no wind primitive of the job or of an earlier event");
+        break;
+      }
       case erg::v1::Event::kWind:
         check_wind(e.wind(), p + ".wind", out);
         break;
@@ -490,6 +573,8 @@ void table_rec(const pb::Descriptor* d, const std::string& path, std::string& ou
     const std::string name = path.empty() ? f->name() : path + "." + f->name();
     if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE) {
       if (f->message_type()->full_name() == "erg.v1.WindRegime" && !path.empty()) continue;
+      // An event's primitive has the fields of wind_primitives[].
+      if (f->message_type()->full_name() == "erg.v1.WindPrimitive" && path == "events[]") continue;
       table_rec(f->message_type(), name + (f->is_repeated() ? "[]" : ""), out, depth + 1);
       continue;
     }

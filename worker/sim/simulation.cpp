@@ -6,6 +6,7 @@
 
 #include "init/layers.h"
 #include "job/spec.h"
+#include "wind/primitives.h"
 #include "wind/regime.h"
 
 namespace erg {
@@ -169,6 +170,9 @@ void Simulation::step() {
   apply_events(step_);
   lap(kEvents);
   backend_->wind(wind::at_step(spec_, step_));  // high-altitude wind, venturi, warping
+  // Local wind primitives [P19 4.4], w = warped + u, before the shadow reads w.
+  if (const auto active = wind::primitives_at(spec_, step_); !active.empty())
+    backend_->perturb_wind(wind::batches(active));
   lap(kWind);
   backend_->shadow();
   lap(kShadow);

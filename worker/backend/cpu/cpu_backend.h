@@ -46,6 +46,7 @@ class CpuBackend final : public Backend {
   void download_shadow(std::vector<float>& shadow) override;
 
   void wind(Vec2 a) override;
+  void perturb_wind(const std::vector<wind_primitives::Batch>& batches) override;
   void shadow() override;
   void saltation(std::int64_t step) override;
   void reptation() override;

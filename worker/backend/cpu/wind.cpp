@@ -1,11 +1,14 @@
 // Surface wind on the CPU: venturi and multi-scale warping
-// (stages/venturi.h, stages/wind_warping.h).
+// (stages/venturi.h, stages/wind_warping.h), then the local wind primitives
+// (stages/wind_primitives.h).
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
 #include "backend/cpu/cpu_backend.h"
 #include "stages/obstacles.h"
 #include "stages/venturi.h"
+#include "stages/wind_primitives.h"
 #include "stages/wind_warping.h"
 
 namespace erg::cpu {
@@ -160,6 +163,64 @@ void CpuBackend::wind(Vec2 a) {
              rows.data() + 2 * c.nx, rows.data() + 3 * c.nx);
   }
   ex_.finish_fill(height_m_, m_.halo_shadow());
+}
+
+// Every owned cell from its global index only: no ghosts are read, and the
+// result does not depend on the tiling or the thread count. The same sums as
+// wind_primitives::add_batch (the GPU's), with two savings: only the rows and
+// columns in a primitive's box are visited, and psi at the right corners of
+// a cell is reused as the left corners of the next (psi is a pure function
+// of the corner, so the bits are the same).
+void CpuBackend::perturb_wind(const std::vector<wind_primitives::Batch>& batches) {
+  namespace wp = wind_primitives;
+  for (const wp::Batch& b : batches) {
+#pragma omp parallel num_threads(threads_)
+    {
+      std::vector<double> ux(static_cast<size_t>(g_.nx)), uy(static_cast<size_t>(g_.nx));
+      std::vector<unsigned char> touched(static_cast<size_t>(g_.nx));
+#pragma omp for schedule(static)
+      for (int y = 0; y < g_.ny; ++y) {
+        const int gy = g_.y0 + y;
+        bool row = false;
+        for (int k = 0; k < b.n; ++k) {
+          const wp::Primitive& P = b.p[k];
+          if (!wp::in_span(gy, P.by0, P.bh, P.gny)) continue;
+          if (!row) {
+            std::fill(ux.begin(), ux.end(), 0.0);
+            std::fill(uy.begin(), uy.end(), 0.0);
+            std::fill(touched.begin(), touched.end(), 0);
+            row = true;
+          }
+          int prev = -2;
+          double right0 = 0.0, right1 = 0.0;  // psi at (gx + 1, gy), (gx + 1, gy + 1)
+          for (int x = 0; x < g_.nx; ++x) {
+            const int gx = g_.x0 + x;
+            if (!wp::in_span(gx, P.bx0, P.bw, P.gnx)) continue;
+            const bool carry = prev == x - 1;
+            const double p00 = carry ? right0 : wp::psi_at_corner(P, gx, gy);
+            const double p01 = carry ? right1 : wp::psi_at_corner(P, gx, gy + 1);
+            right0 = wp::psi_at_corner(P, gx + 1, gy);
+            right1 = wp::psi_at_corner(P, gx + 1, gy + 1);
+            prev = x;
+            const wp::Velocity u = wp::curl_of_corners(p00, right0, p01, right1, P.cell_m);
+            const size_t i = static_cast<size_t>(x);
+            ux[i] += u.x;
+            uy[i] += u.y;
+            touched[i] = 1;
+          }
+        }
+        if (!row) continue;
+        float* wx = wind_x_.row(y);
+        float* wy = wind_y_.row(y);
+        for (int x = 0; x < g_.nx; ++x) {
+          const size_t i = static_cast<size_t>(x);
+          if (!touched[i]) continue;
+          wx[x] = wx[x] + static_cast<float>(ux[i]);
+          wy[x] = wy[x] + static_cast<float>(uy[i]);
+        }
+      }
+    }
+  }
 }
 
 }  // namespace erg::cpu

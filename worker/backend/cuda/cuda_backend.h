@@ -197,12 +197,13 @@ class CudaBackend final : public Backend {
   void download_wind(std::vector<float>& wind_xy) override;
   void download_shadow(std::vector<float>& shadow) override;
 
-  void wind(Vec2 a) override;                  // wind.cu
-  void shadow() override;                      // shadow.cu
-  void saltation(std::int64_t step) override;  // saltation.cu
-  void reptation() override;                   // reptation.cu
-  int avalanche_sand() override;               // avalanching.cu
-  void avalanche_bedrock() override;           // avalanching.cu
+  void wind(Vec2 a) override;                                                      // wind.cu
+  void perturb_wind(const std::vector<wind_primitives::Batch>& batches) override;  // wind.cu
+  void shadow() override;                                                          // shadow.cu
+  void saltation(std::int64_t step) override;                                      // saltation.cu
+  void reptation() override;                                                       // reptation.cu
+  int avalanche_sand() override;                                                   // avalanching.cu
+  void avalanche_bedrock() override;                                               // avalanching.cu
 
   total_t apply_sand_brush(const events::Brush& b) override;
   total_t apply_bedrock_brush(const events::Brush& b) override;

@@ -1,11 +1,13 @@
 // Surface wind on the GPU: venturi and multi-scale warping
 // (stages/venturi.h, stages/wind_warping.h), as backend/cpu/wind.cpp:
 // heights in metres, exact coarse block sums, spectral Gaussian gradients on
-// the coarse grid (cuFFT, double), then the per-cell wind.
+// the coarse grid (cuFFT, double), then the per-cell wind; then the local
+// wind primitives (stages/wind_primitives.h).
 #include <vector>
 
 #include "backend/cuda/cuda_backend.h"
 #include "stages/venturi.h"
+#include "stages/wind_primitives.h"
 #include "stages/wind_warping.h"
 
 namespace erg::gpu {
@@ -97,7 +99,24 @@ __global__ void wind_kernel(TileGeom g, CoarseGrid c, Vec2 a, float venturi_k,
   wind_y[i] = w.y;
 }
 
+// One batch of wind primitives added at every owned cell, from its global
+// index only (as the CPU: wind_primitives::add_batch).
+__global__ void perturb_kernel(TileGeom g, wind_primitives::Batch b, float* wind_x, float* wind_y) {
+  int x, y;
+  if (!owned_cell(g, x, y)) return;
+  const std::size_t i = g.at(x, y);
+  const Vec2 w = wind_primitives::add_batch({wind_x[i], wind_y[i]}, b, g.x0 + x, g.y0 + y);
+  wind_x[i] = w.x;
+  wind_y[i] = w.y;
+}
+
 }  // namespace
+
+void CudaBackend::perturb_wind(const std::vector<wind_primitives::Batch>& batches) {
+  const Launch cells = owned_cells(g_);
+  for (const wind_primitives::Batch& b : batches)
+    ERG_LAUNCH(perturb_kernel, cells.grid, cells.block, g_, b, wind_x_.get(), wind_y_.get());
+}
 
 void CudaBackend::coarse_gradients() {
   const CoarseGrid& c = m_.coarse;
