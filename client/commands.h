@@ -10,6 +10,8 @@ namespace erg::client {
 // Local runs (local_run.cpp): erg-worker on this machine.
 int cmd_run(const std::vector<std::string>& args);
 int cmd_check(const std::vector<std::string>& args);
+// Amplified heightmap of a snapshot region (amplify.cpp; worker/amplify/).
+int cmd_amplify(const std::vector<std::string>& args);
 
 class Remote;  // remote/connection.h
 

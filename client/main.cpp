@@ -5,6 +5,8 @@
 //   erg run --resume DIR [--steps N]
 //   erg check JOB.json      validate a job and print it with every default filled in
 //   erg params              every model parameter: default, range, unit, source
+//   erg amplify DIR [--step S] [--region X0,Y0,W,H] [--upsample K] --out FILE.h5
+//                           a region upsampled with ripples and sand bumps (+ FILE.png)
 // On ergd, the job service (remote/*.cpp; proto/erg/v1/service.proto):
 //   erg submit JOB.json [--watch] [--key K] [--steps N] [--snapshot-every K]
 //              [--checkpoint-every C] [--ranks P] [--threads T]   prints the job id
@@ -52,6 +54,10 @@ const CommandUsage kUsage[] = {
      "  erg run --resume DIR [--steps N] [...]\n"},
     {"check", "  erg check JOB.json   validate a job; print it with all defaults\n"},
     {"params", "  erg params           list every model parameter with its default and source\n"},
+    {"amplify",
+     "  erg amplify DIR [--step S] [--region X0,Y0,W,H] [--upsample K] --out FILE.h5\n"
+     "                       a snapshot region upsampled K times (default 4) with ripples\n"
+     "                       and sand bumps: HDF5 /height and a FILE.png preview\n"},
     {"submit",
      "  erg submit JOB.json [--watch] [--key IDEMPOTENCY_KEY] [--steps N] [--snapshot-every K]\n"
      "             [--checkpoint-every C] [--ranks P] [--threads T]\n"
@@ -148,6 +154,7 @@ int main(int argc, char** argv) {
   }
   if (cmd == "run") return cmd_run(args);
   if (cmd == "check") return cmd_check(args);
+  if (cmd == "amplify") return cmd_amplify(args);
   if (cmd == "params") {
     std::cout << erg::job::parameter_table_markdown();
     return 0;

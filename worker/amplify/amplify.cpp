@@ -14,6 +14,7 @@
 
 namespace erg::amplify {
 
+using detail::bicubic;
 using detail::bilinear;
 using detail::wrap;
 
@@ -93,7 +94,8 @@ AmplifiedLayers amplify_layers(const AmplifyInput& in, const Region& region, int
     for (int i = 0; i < out.nx; ++i) {
       const double x = cx(region.x0, i), y = cx(region.y0, j);
       out.base[static_cast<size_t>(j) * out.nx + i] =
-          bilinear(in.bedrock, in.nx, in.ny, x, y) + bilinear(in.sand, in.nx, in.ny, x, y);
+          static_cast<float>(bicubic(in.bedrock, in.nx, in.ny, x, y) +
+                             std::max(0.0f, bicubic(in.sand, in.nx, in.ny, x, y)));
     }
 
   // Ripples on the region plus a margin (none along an axis the region spans).
@@ -129,12 +131,14 @@ AmplifiedLayers amplify_layers(const AmplifyInput& in, const Region& region, int
 
   // S~ = S + R + B [P19 6], sand never below the bedrock.
   out.height.resize(n);
+  out.bedrock.resize(n);
   for (int j = 0; j < out.ny; ++j)
     for (int i = 0; i < out.nx; ++i) {
       const size_t c = static_cast<size_t>(j) * out.nx + i;
       const double x = cx(region.x0, i), y = cx(region.y0, j);
-      const double bed = bilinear(in.bedrock, in.nx, in.ny, x, y);
-      const double sand = bilinear(in.sand, in.nx, in.ny, x, y);
+      const double bed = bicubic(in.bedrock, in.nx, in.ny, x, y);
+      const double sand = std::max(0.0f, bicubic(in.sand, in.nx, in.ny, x, y));
+      out.bedrock[c] = static_cast<float>(bed);
       out.height[c] = static_cast<float>(bed + std::max(0.0, sand + out.ripples[c] + out.bumps[c]));
     }
   return out;

@@ -44,7 +44,8 @@ using AmplifyParams = erg::v1::AmplifyParameters;
 struct AmplifiedLayers {
   int nx = 0, ny = 0;
   double cell_size_m = 1;
-  std::vector<float> base;     // bedrock + sand, upsampled (bilinear)
+  std::vector<float> bedrock;  // upsampled (Catmull-Rom bicubic)
+  std::vector<float> base;     // bedrock + sand, upsampled (bicubic, sand >= 0)
   std::vector<float> ripples;  // R, metres
   std::vector<float> bumps;    // B, metres
   std::vector<float> height;   // bedrock + max(0, sand + R + B)

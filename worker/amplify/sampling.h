@@ -26,4 +26,32 @@ inline float bilinear(const std::vector<float>& f, int nx, int ny, double x, dou
                             ty * ((1 - tx) * at(i0, j1) + tx * at(i1, j1)));
 }
 
+// Catmull-Rom bicubic value of a periodic [ny][nx] field at cell-centre
+// coordinates (x, y): C1-continuous, so a hillshade of the upsampled terrain
+// shows no facets at the coarse cells (bilinear would). It may overshoot
+// between cells; callers clamp where a sign matters (sand >= 0).
+inline float bicubic(const std::vector<float>& f, int nx, int ny, double x, double y) {
+  const double fx = std::floor(x), fy = std::floor(y);
+  const double tx = x - fx, ty = y - fy;
+  const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
+  auto weights = [](double t, double w[4]) {
+    const double t2 = t * t, t3 = t2 * t;
+    w[0] = 0.5 * (-t3 + 2 * t2 - t);
+    w[1] = 0.5 * (3 * t3 - 5 * t2 + 2);
+    w[2] = 0.5 * (-3 * t3 + 4 * t2 + t);
+    w[3] = 0.5 * (t3 - t2);
+  };
+  double wx[4], wy[4];
+  weights(tx, wx);
+  weights(ty, wy);
+  double v = 0;
+  for (int b = 0; b < 4; ++b) {
+    const size_t row = static_cast<size_t>(wrap(iy - 1 + b, ny)) * nx;
+    double r = 0;
+    for (int a = 0; a < 4; ++a) r += wx[a] * static_cast<double>(f[row + wrap(ix - 1 + a, nx)]);
+    v += wy[b] * r;
+  }
+  return static_cast<float>(v);
+}
+
 }  // namespace erg::amplify::detail
