@@ -61,41 +61,56 @@ std::vector<float> ripple_relief(const RippleGrid& g, const std::vector<PastWind
   const double golden = 0.61803398874989485;
   const size_t nwinds = std::max<size_t>(1, winds.size());
 
+  // The local wind as speed and unit direction, once (an iteration only
+  // turns and scales it).
+  std::vector<double> speed0(n), ux0(n), uy0(n);
+  for (size_t c = 0; c < n; ++c) {
+    const double wx = g.wind[2 * c], wy = g.wind[2 * c + 1];
+    speed0[c] = std::hypot(wx, wy);
+    ux0[c] = speed0[c] > 1e-6 ? wx / speed0[c] : 0;
+    uy0[c] = speed0[c] > 1e-6 ? wy / speed0[c] : 0;
+  }
+
   for (std::int64_t it = 0; it < p.ripple_iterations(); ++it) {
     // The wind of this iteration: a low-discrepancy walk over the history.
     const double frac = std::fmod(static_cast<double>(it + 1) * golden, 1.0);
     const PastWind pw = winds.empty()
                             ? PastWind{}
                             : winds[std::min(nwinds - 1, static_cast<size_t>(frac * nwinds))];
+    const double ct = pw.cos_turn, st = pw.sin_turn;
     // Saltation [ON00 2(1)]: H(x) -= q; H(x + L) += q, L = L0 + b H(x). The
     // landing point is off the lattice for an oblique wind: split bilinearly.
+    // A scatter, in row-major order: the same sums on every run.
     next = h;
-    for (int j = 0; j < ny; ++j)
+    for (int j = 0; j < ny; ++j) {
       for (int i = 0; i < nx; ++i) {
         const size_t c = static_cast<size_t>(j) * nx + i;
         const double lift = q * g.mobility[c];
-        if (lift <= 0) continue;
-        const double wx0 = g.wind[2 * c], wy0 = g.wind[2 * c + 1];
-        const double wx = pw.gain * (pw.cos_turn * wx0 - pw.sin_turn * wy0);
-        const double wy = pw.gain * (pw.sin_turn * wx0 + pw.cos_turn * wy0);
-        const double speed = std::hypot(wx, wy);
-        if (speed < 1e-6) continue;
+        const double speed = pw.gain * speed0[c];
+        if (lift <= 0 || speed < 1e-6) continue;
         const double l0 = std::min(hop_per_mps * speed, hop_max);
         if (l0 <= 0) continue;
         const double hop = std::clamp(l0 + b * h[c], 0.0, 2 * hop_max);
-        const double tx = i + hop * wx / speed, ty = j + hop * wy / speed;
+        const double tx = i + hop * (ct * ux0[c] - st * uy0[c]);
+        const double ty = j + hop * (st * ux0[c] + ct * uy0[c]);
         const double fx = std::floor(tx), fy = std::floor(ty);
         const double ax = tx - fx, ay = ty - fy;
-        const int i0 = wrap(static_cast<int>(fx), nx), i1 = wrap(static_cast<int>(fx) + 1, nx);
-        const int j0 = wrap(static_cast<int>(fy), ny), j1 = wrap(static_cast<int>(fy) + 1, ny);
+        int i0 = static_cast<int>(fx), j0 = static_cast<int>(fy);
+        int i1 = i0 + 1, j1 = j0 + 1;
+        if (i0 < 0 || i1 >= nx) i0 = wrap(i0, nx), i1 = wrap(i1, nx);
+        if (j0 < 0 || j1 >= ny) j0 = wrap(j0, ny), j1 = wrap(j1, ny);
         next[c] -= lift;
         next[static_cast<size_t>(j0) * nx + i0] += lift * (1 - ax) * (1 - ay);
         next[static_cast<size_t>(j0) * nx + i1] += lift * ax * (1 - ay);
         next[static_cast<size_t>(j1) * nx + i0] += lift * (1 - ax) * ay;
         next[static_cast<size_t>(j1) * nx + i1] += lift * ax * ay;
       }
+    }
+
     // Creep [ON00 2(1)]: relaxation by gravity as diffusion (Nishimori &
-    // Ouchi's isotropic 9-point weights).
+    // Ouchi's isotropic 9-point weights). A gather: rows in parallel give
+    // the same bits on any thread count.
+#pragma omp parallel for schedule(static) if (n >= (size_t{1} << 18))
     for (int j = 0; j < ny; ++j) {
       const size_t jm = static_cast<size_t>(wrap(j - 1, ny)) * nx;
       const size_t j0 = static_cast<size_t>(j) * nx;
