@@ -5,6 +5,7 @@
 // near-symmetric under alternating winds, they vanish in wind shadow; bumps
 // grow around plants (and obstacles when the snapshot has them).
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <cmath>
 #include <complex>
@@ -251,6 +252,18 @@ TEST(Ripples, DeterministicSeededAndPeriodic) {
                         h1[static_cast<size_t>(j) * n + n / 2 - 1]);
   }
   EXPECT_LT(seam, 2 * inside);
+}
+
+// Large grids run creep rows in parallel: the same bits on 1 and 2 threads.
+TEST(Ripples, SameBitsOnAnyThreadCount) {
+  AmplifyParams p = defaults();
+  p.set_ripple_iterations(12);
+  const AmplifyInput in = flat_sand(64, 6, 35);  // 512 x 512 fine cells
+  omp_set_num_threads(1);
+  const std::vector<float> one = amplify(in, Region{0, 0, 64, 64}, 8, p);
+  omp_set_num_threads(2);
+  const std::vector<float> two = amplify(in, Region{0, 0, 64, 64}, 8, p);
+  EXPECT_EQ(one, two);
 }
 
 TEST(Amplify, RegionMayWrapAndBadArgumentsAreNamed) {
