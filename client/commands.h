@@ -13,6 +13,9 @@ int cmd_check(const std::vector<std::string>& args);
 // A snapshot to GeoTIFF, PNG16, EXR or OBJ (export_cmd.cpp, worker/export/).
 int cmd_export(const std::vector<std::string>& args);
 
+// Amplified heightmap of a snapshot region (amplify.cpp; worker/amplify/).
+int cmd_amplify(const std::vector<std::string>& args);
+
 class Remote;  // remote/connection.h
 
 // Remote jobs on ergd (remote/*.cpp).

@@ -44,6 +44,8 @@ int cmd_export(const std::vector<std::string>& args) {
     std::string v;
     if (a == "--normals") {
       r.normals = true;
+    } else if (a == "--no-amplify") {
+      r.amplify = false;
     } else if (a.rfind("--", 0) == 0 && !value(&v)) {
       return bad(a + " needs a value");
     } else if (a == "--step") {

@@ -6,7 +6,9 @@
 //   erg check JOB.json      validate a job and print it with every default filled in
 //   erg params              every model parameter: default, range, unit, source
 //   erg export DIR --format F --out FILE [--step S] [--layer L] [--region X0,Y0,W,H]
-//              [--upsample K] [--tiles NxM] [--normals]   GeoTIFF, PNG16, EXR, OBJ
+//              [--upsample K [--no-amplify]] [--tiles NxM] [--normals]   GeoTIFF, PNG16, EXR, OBJ
+//   erg amplify DIR [--step S] [--region X0,Y0,W,H] [--upsample K] --out FILE.h5
+//                           a region upsampled with ripples and sand bumps (+ FILE.png)
 // On ergd, the job service (remote/*.cpp; proto/erg/v1/service.proto):
 //   erg submit JOB.json [--watch] [--key K] [--steps N] [--snapshot-every K]
 //              [--checkpoint-every C] [--ranks P] [--threads T]   prints the job id
@@ -57,8 +59,14 @@ const CommandUsage kUsage[] = {
     {"export",
      "  erg export DIR --format geotiff|png16|exr|obj --out FILE [--step S]\n"
      "             [--layer height|sand|bedrock|vegetation] [--region X0,Y0,W,H]\n"
-     "             [--upsample K] [--tiles NxM] [--normals]\n"
-     "                       a snapshot (latest by default) for GIS and game engines\n"},
+     "             [--upsample K [--no-amplify]] [--tiles NxM] [--normals]\n"
+     "                       a snapshot (latest by default) for GIS and game engines;\n"
+     "                       heights upsampled K times get ripples and sand bumps\n"
+     "                       (amplify.* of the job) unless --no-amplify\n"},
+    {"amplify",
+     "  erg amplify DIR [--step S] [--region X0,Y0,W,H] [--upsample K] --out FILE.h5\n"
+     "                       a snapshot region upsampled K times (default 4) with ripples\n"
+     "                       and sand bumps: HDF5 /height and a FILE.png preview\n"},
     {"submit",
      "  erg submit JOB.json [--watch] [--key IDEMPOTENCY_KEY] [--steps N] [--snapshot-every K]\n"
      "             [--checkpoint-every C] [--ranks P] [--threads T]\n"
@@ -156,6 +164,7 @@ int main(int argc, char** argv) {
   if (cmd == "run") return cmd_run(args);
   if (cmd == "check") return cmd_check(args);
   if (cmd == "export") return cmd_export(args);
+  if (cmd == "amplify") return cmd_amplify(args);
   if (cmd == "params") {
     std::cout << erg::job::parameter_table_markdown();
     return 0;

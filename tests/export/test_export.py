@@ -140,10 +140,11 @@ class ExportTest(unittest.TestCase):
         xs = [(60 + i) % NX for i in range(8)]
         np.testing.assert_array_equal(a, h[np.ix_(ys, xs)])
         self.assertEqual(ds.GetGeoTransform()[0], 60 * CELL)
-        # --upsample 2: half the pixel size, bilinear between cell centres.
+        # --upsample 2 --no-amplify: half the pixel size, bilinear between
+        # cell centres.
         path2 = self.out("r2.tif")
         erg("export", self.rundir, "--format", "geotiff", "--region", "10,10,8,8", "--upsample", "2",
-            "--out", path2)
+            "--no-amplify", "--out", path2)
         ds2 = gdal.Open(path2)
         self.assertEqual(ds2.GetGeoTransform()[1], CELL / 2)
         b = ds2.GetRasterBand(1).ReadAsArray()[::-1].astype(np.float64)
@@ -153,6 +154,58 @@ class ExportTest(unittest.TestCase):
         want = (0.75 * 0.75 * hh[10, 10] + 0.25 * 0.75 * hh[10, 11] + 0.75 * 0.25 * hh[11, 10]
                 + 0.25 * 0.25 * hh[11, 11])
         self.assertAlmostEqual(b[1, 1], want, places=4)
+
+    # ---- Amplification ([P19] 6) -------------------------------------------------
+    def test_upsampled_height_is_amplified_with_ripples_across_the_wind(self):
+        # Open sand 1 m thick on flat rock under one wind at 20 degrees: the
+        # upsampled export carries ripples whose wave vector (2-D FFT of the
+        # amplified minus the plain interpolated heights) lies along the
+        # wind, i.e. crests perpendicular to it.
+        spec = job(bedrock={"constant": 0}, sand={"constant": 1}, steps=10)
+        spec["domain"] = {"nx": 48, "ny": 48, "cell_size_m": 1.0}
+        rundir = self.out("ripples_run")
+        erg("run", write_job(self.d, "ripples.json", spec), "--out", rundir, "--threads", "2")
+        K, W = 4, 32
+        amp, plain = self.out("amp.tif"), self.out("plain.tif")
+        for path, extra in ((amp, []), (plain, ["--no-amplify"])):
+            erg("export", rundir, "--step", "10", "--format", "geotiff", "--region", f"8,8,{W},{W}",
+                "--upsample", str(K), "--out", path, *extra)
+        ds = gdal.Open(amp)
+        self.assertEqual(ds.GetGeoTransform()[1], 1.0 / K)
+        a = ds.GetRasterBand(1).ReadAsArray()[::-1].astype(np.float64)
+        ds = None
+        b = read_band(plain)[::-1].astype(np.float64)
+        self.assertEqual(a.shape, (W * K, W * K))
+        r = a - b
+        self.assertGreater(r.std(), 0.005, "no ripples in the amplified export")
+        self.assertLess(np.abs(r).max(), 0.5, "amplification moved the terrain, not just rippled it")
+        win = np.outer(np.hanning(W * K), np.hanning(W * K))
+        spec2 = np.abs(np.fft.fft2((r - r.mean()) * win)) ** 2
+        spec2[0, 0] = 0
+        ky, kx = np.unravel_index(np.argmax(spec2), spec2.shape)
+        n = W * K
+        kx = kx - n if kx > n // 2 else kx
+        ky = ky - n if ky > n // 2 else ky
+        angle = np.degrees(np.arctan2(ky, kx)) % 180
+        off = min(abs(angle - 20), 180 - abs(angle - 20))
+        print(f"amplified export: ripple rms {r.std():.4f} m, wave vector {angle:.1f} deg "
+              f"(wind 20 deg)")
+        self.assertLess(off, 10, f"ripple wave vector at {angle:.1f} deg, wind at 20 deg")
+
+    def test_amplified_engine_tiles_still_share_their_borders(self):
+        path = self.out("at.tif")
+        p = erg("export", self.rundir, "--format", "geotiff", "--upsample", "2", "--tiles", "2x1",
+                "--out", path)
+        self.assertEqual(len(p.stdout.split()), 2)
+        t0, t1 = read_band(self.out("at_x0_y0.tif")), read_band(self.out("at_x1_y0.tif"))
+        self.assertEqual(t0.shape, (2 * NY + 1, NX + 1))
+        np.testing.assert_array_equal(t0[:, -1], t1[:, 0])
+        np.testing.assert_array_equal(t1[:, -1], t0[:, 0])  # the torus wraps
+        plain = self.out("pt.tif")
+        erg("export", self.rundir, "--format", "geotiff", "--upsample", "2", "--tiles", "2x1",
+            "--no-amplify", "--out", plain)
+        self.assertFalse(np.array_equal(t0, read_band(self.out("pt_x0_y0.tif"))),
+                         "--upsample 2 exported the plain interpolation")
 
     def test_engine_tiles_share_their_borders_on_the_torus(self):
         path = self.out("t.tif")

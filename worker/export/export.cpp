@@ -85,7 +85,10 @@ std::vector<std::string> run_export(const Request& r) {
                       std::to_string(ny) + ") and 1 <= W <= " + std::to_string(nx) +
                       ", 1 <= H <= " + std::to_string(ny) + " (cells; the region may wrap)");
   int fnx = 0, fny = 0;
-  const std::vector<float> all = heights_for_export(snap, r.layer, reg, r.upsample, &fnx, &fny);
+  const bool amplified = r.amplify && r.layer == Layer::kHeight && r.upsample > 1;
+  const std::vector<float> all =
+      amplified ? amplified_heights(snapshot_path(r.dir, r.step), reg, r.upsample, &fnx, &fny)
+                : heights_for_export(snap, r.layer, reg, r.upsample, &fnx, &fny);
   const int W = fnx - 1, H = fny - 1;  // samples without the shared extra row/column
   if (r.tiles_x > W || r.tiles_y > H)
     throw ExportError("--tiles " + std::to_string(r.tiles_x) + "x" + std::to_string(r.tiles_y) +

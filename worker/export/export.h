@@ -37,6 +37,9 @@ struct Request {
   int tiles_x = 1, tiles_y = 1;
   bool tiled = false;    // --tiles given (even 1x1): engine tiles with shared borders
   bool normals = false;  // OBJ: write vertex normals
+  // Layer height with upsample > 1: add ripples and sand bumps (worker/amplify/,
+  // [P19 6]) on the upsampled samples. Off: plain bilinear interpolation.
+  bool amplify = true;
 };
 
 // Samples of the exported layer: nx x ny, row-major, row 0 = south; sample
@@ -64,10 +67,18 @@ struct Provenance {
 // (w * upsample + 1) x (h * upsample + 1) samples; *nx, *ny receive the
 // size. upsample = 1 copies the snapshot's cells exactly; upsample > 1
 // interpolates bilinearly between cell centres, periodically.
-// Amplification (worker/amplify/, small-scale ripples on the upsampled
-// heights) plugs in here, after the interpolation, for layer kHeight.
+// run_export replaces these samples by amplified ones (amplified_heights)
+// for layer kHeight with upsample > 1 unless Request::amplify is off.
 std::vector<float> heights_for_export(const io::Snapshot& snap, Layer layer, const Region& region,
                                       int upsample, int* nx, int* ny);
+
+// The amplified terrain [P19 6] of the snapshot file `path` on the same
+// samples as heights_for_export(kHeight): (w * upsample + 1) x
+// (h * upsample + 1), the extra column and row taken from the torus. The
+// ripples see the snapshot's wind, shadow, vegetation, obstacles and the
+// wind history of its job (amplify::input_from_snapshot).
+std::vector<float> amplified_heights(const std::string& path, const Region& region, int upsample,
+                                     int* nx, int* ny);
 
 // The snapshot file of `step` in an output dir (-1: the latest).
 std::string snapshot_path(const std::string& dir, long long step);

@@ -1,8 +1,11 @@
-// The exported samples of a layer (see heights_for_export in export.h).
+// The exported samples of a layer (see heights_for_export in export.h) and
+// their amplified form (amplified_heights).
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
 
+#include "amplify/amplify.h"
 #include "export/export.h"
 
 namespace erg::exporting {
@@ -54,8 +57,28 @@ std::vector<float> heights_for_export(const io::Snapshot& snap, Layer layer, con
       }
       out[static_cast<std::size_t>(j) * onx + i] = v;
     }
-  // Amplification hook: worker/amplify/ adds ripples to `out` here (layer
-  // kHeight, upsample > 1), on the same (onx x ony) samples.
+  *nx_out = onx;
+  *ny_out = ony;
+  return out;
+}
+
+std::vector<float> amplified_heights(const std::string& path, const Region& region, int upsample,
+                                     int* nx_out, int* ny_out) {
+  erg::v1::JobSpec spec;
+  const amplify::AmplifyInput in = amplify::input_from_snapshot(path, spec);
+  const Region r = region.w > 0 ? region : Region{0, 0, in.nx, in.ny};
+  // One more cell east and north gives the shared extra column and row; a
+  // region spanning the torus is periodic, so its extra samples wrap.
+  const amplify::Region ar{r.x0, r.y0, std::min(r.w + 1, in.nx), std::min(r.h + 1, in.ny)};
+  const amplify::AmplifiedLayers a = amplify::amplify_layers(in, ar, upsample, spec.amplify());
+  const int onx = r.w * upsample + 1, ony = r.h * upsample + 1;
+  std::vector<float> out(static_cast<std::size_t>(onx) * static_cast<std::size_t>(ony));
+  // Fine sample i of the amplified grid and sample i of heights_for_export
+  // both stand at x0 + (i + 1/2) / K cells.
+  for (int j = 0; j < ony; ++j)
+    for (int i = 0; i < onx; ++i)
+      out[static_cast<std::size_t>(j) * onx + i] =
+          a.height[static_cast<std::size_t>(j % a.ny) * a.nx + static_cast<std::size_t>(i % a.nx)];
   *nx_out = onx;
   *ny_out = ony;
   return out;

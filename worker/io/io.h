@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace erg::io {
@@ -66,6 +67,18 @@ struct Snapshot {
   std::vector<float> bedrock, sand, vegetation, wind, airborne, shadow, obstacles;
 };
 Snapshot read_snapshot(const std::string& path, bool terrain_only = false);
+
+// ---- heightmaps --------------------------------------------------------------
+// One float32 dataset /height [ny][nx] (row 0 = y = 0, metres), deflated,
+// with root attributes cell_size_m, nx, ny, `source` and the given numbers
+// (step, region, upsample...). Atomic. Written by `erg amplify`.
+struct HeightmapMeta {
+  int nx = 0, ny = 0;
+  double cell_size_m = 1;
+  std::string source;                                 // e.g. the snapshot path
+  std::vector<std::pair<std::string, double>> attrs;  // more root attributes
+};
+void write_heightmap(const std::string& path, const HeightmapMeta& meta, const float* height);
 
 // ---- checkpoints -----------------------------------------------------------
 // The exact integer state: enough to continue a run bitwise identically.

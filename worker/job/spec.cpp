@@ -372,6 +372,7 @@ void apply_defaults(JobSpec& spec) {
   spec.mutable_domain();
   spec.mutable_run();
   spec.mutable_model();
+  spec.mutable_amplify();
   spec.mutable_layers();
   defaults_rec(spec);
   if (spec.transport() == JobSpec::TRANSPORT_UNSPECIFIED) spec.set_transport(JobSpec::EXPECTED);
