@@ -11,6 +11,12 @@ namespace erg::client {
 int cmd_run(const std::vector<std::string>& args);
 int cmd_check(const std::vector<std::string>& args);
 
+// erg validate (validate.cpp): the geomorphology suite of client/validate/.
+int cmd_validate(const std::vector<std::string>& args);
+
+// erg-worker: $ERG_WORKER, else next to this erg binary, else on PATH.
+std::string worker_path();
+
 class Remote;  // remote/connection.h
 
 // Remote jobs on ergd (remote/*.cpp).

@@ -70,6 +70,8 @@ std::map<std::string, std::string> parse_flat_json(const std::string& line) {
   return out;
 }
 
+}  // namespace
+
 std::string worker_path() {
   if (const char* env = std::getenv("ERG_WORKER")) return env;
   std::error_code ec;
@@ -80,6 +82,8 @@ std::string worker_path() {
   }
   return "erg-worker";
 }
+
+namespace {
 
 pid_t g_child = -1;
 extern "C" void forward_signal(int sig) {

@@ -5,6 +5,7 @@
 //   erg run --resume DIR [--steps N]
 //   erg check JOB.json      validate a job and print it with every default filled in
 //   erg params              every model parameter: default, range, unit, source
+//   erg validate --out DIR [--quick]   measured laws of geomorphology (validate.cpp)
 // On ergd, the job service (remote/*.cpp; proto/erg/v1/service.proto):
 //   erg submit JOB.json [--watch] [--key K] [--steps N] [--snapshot-every K]
 //              [--checkpoint-every C] [--ranks P] [--threads T]   prints the job id
@@ -52,6 +53,9 @@ const CommandUsage kUsage[] = {
      "  erg run --resume DIR [--steps N] [...]\n"},
     {"check", "  erg check JOB.json   validate a job; print it with all defaults\n"},
     {"params", "  erg params           list every model parameter with its default and source\n"},
+    {"validate",
+     "  erg validate --out DIR [--quick] [--threads T] [--reuse]\n"
+     "                       run the geomorphology scenes, write DIR/report.md (laws, plots)\n"},
     {"submit",
      "  erg submit JOB.json [--watch] [--key IDEMPOTENCY_KEY] [--steps N] [--snapshot-every K]\n"
      "             [--checkpoint-every C] [--ranks P] [--threads T]\n"
@@ -148,6 +152,7 @@ int main(int argc, char** argv) {
   }
   if (cmd == "run") return cmd_run(args);
   if (cmd == "check") return cmd_check(args);
+  if (cmd == "validate") return cmd_validate(args);
   if (cmd == "params") {
     std::cout << erg::job::parameter_table_markdown();
     return 0;

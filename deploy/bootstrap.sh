@@ -25,6 +25,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # test helpers that read our outputs with tools erg did not write
   python3 python3-h5py python3-numpy
+  # erg validate: measurements (connected components) and the report's plots
+  python3-scipy python3-matplotlib
   # the Slurm launcher and its test cluster (slurmctld, slurmd, munge)
   slurmctld slurmd slurm-client munge
   # systemd-analyze verifies deploy/systemd/ergd.service
