@@ -329,7 +329,8 @@ def slip_face_law(rep, T, barchan_snaps, finals, repose, job):
     rep.add("Steepest slope anywhere after each scene's last step, over every pair of neighbours "
             "whose higher cell holds sand (what [N24] eq. 9 bounds); allowed: repose + "
             f"{S['max_excess_deg']:g} deg.", "")
-    rep.add("| scene | steepest (deg) | pairs above repose | within bound |", "|---|---|---|---|")
+    rep.add(f"| scene | steepest (deg) | sand pairs | above repose | above repose + {S['max_excess_deg']:g} "
+            "| within bound |", "|---|---|---|---|---|---|")
     ok_max = True
     worst = 0.0
     for name, snap in finals:
@@ -338,8 +339,8 @@ def slip_face_law(rep, T, barchan_snaps, finals, repose, job):
         within = mx <= repose + S["max_excess_deg"]
         ok_max = ok_max and within
         worst = max(worst, mx)
-        rep.add(f"| {name} | {mx:.2f} | {int((allang > repose).sum())} of {allang.size} | "
-                f"{'yes' if within else 'no'} |")
+        rep.add(f"| {name} | {mx:.2f} | {allang.size} | {int((allang > repose).sum())} | "
+                f"{int((allang > repose + S['max_excess_deg']).sum())} | {'yes' if within else 'no'} |")
     rep.add("")
     rep.add(f"{verdict(ok_max)}: steepest {worst:.2f} deg against {repose:g} + {S['max_excess_deg']:g}"
             + ("" if ok_max else f", {worst - repose - S['max_excess_deg']:.2f} deg too steep") + ".", "")

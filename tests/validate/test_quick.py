@@ -87,6 +87,17 @@ class Quick(unittest.TestCase):
             self.assertEqual(p.read_bytes()[:8], b"\x89PNG\r\n\x1a\n")
         self.assertGreaterEqual(len(re.findall(r"\]\(plots/", self.report)), 5)
 
+    def test_usage_errors(self):
+        p = subprocess.run([ERG, "validate"], capture_output=True, text=True, timeout=30)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("--out DIR is required", p.stderr)
+        self.assertIn("erg validate --out DIR [--quick]", p.stderr)
+        # An existing run is never overwritten without --reuse.
+        p = subprocess.run([ERG, "validate", "--out", str(self.out), "--quick"],
+                           capture_output=True, text=True, timeout=30)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("exists; choose a new --out or pass --reuse", p.stderr)
+
     def test_thresholds_have_sources(self):
         import json
         src = Path(os.environ["ERG_SOURCE_DIR"]) / "client" / "validate" / "thresholds.json"
