@@ -8,7 +8,6 @@ Usually started by `erg validate --out DIR [--quick]`, which passes --worker.
 """
 import argparse
 import json
-import math
 import os
 import subprocess
 import sys
@@ -110,6 +109,9 @@ class Report:
 
 
 def wind_of(job):
+    """The scenes blow one constant wind: the laws are stated for one."""
+    if "constant" not in job.get("wind", {}):
+        raise SystemExit(f"erg validate: scene {job.get('name')}: the laws need a constant wind")
     return float(job["wind"]["constant"].get("direction_deg", 0.0))
 
 
@@ -149,7 +151,7 @@ def barchan_laws(rep, T, run_dir, job):
     # --- 1. speed against height
     S = T["barchan_speed"]
     rep.add("## 1. Barchan migration speed against height", "")
-    rep.add(f"Scene `{run_dir.name}`: {len(job['layers']['sand']['piles'])} isolated cones of sand on a "
+    rep.add(f"Scene `{run_dir.name}`: {len(job['layers']['sand'].get('piles', []))} isolated cones of sand on a "
             f"non-erodible flat bed, one wind of {job['wind']['constant']['speed_mps']} m/s towards "
             f"{wind:g} deg, STOCHASTIC transport. Dunes are the 8-connected bodies of sand thicker "
             f"than {det['dune_sand_threshold_m']} m (periodic labelling), tracked by their "
