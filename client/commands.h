@@ -16,6 +16,12 @@ int cmd_export(const std::vector<std::string>& args);
 // Amplified heightmap of a snapshot region (amplify.cpp; worker/amplify/).
 int cmd_amplify(const std::vector<std::string>& args);
 
+// erg validate (validate.cpp): the geomorphology suite of client/validate/.
+int cmd_validate(const std::vector<std::string>& args);
+
+// erg-worker: $ERG_WORKER, else next to this erg binary, else on PATH.
+std::string worker_path();
+
 class Remote;  // remote/connection.h
 
 // Remote jobs on ergd (remote/*.cpp).

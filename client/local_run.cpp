@@ -26,8 +26,6 @@
 
 namespace erg::client {
 
-namespace {
-
 namespace fs = std::filesystem;
 
 std::string worker_path() {
@@ -40,6 +38,8 @@ std::string worker_path() {
   }
   return "erg-worker";
 }
+
+namespace {
 
 pid_t g_child = -1;
 extern "C" void forward_signal(int sig) {

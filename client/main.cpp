@@ -9,6 +9,7 @@
 //              [--upsample K [--no-amplify]] [--tiles NxM] [--normals]   GeoTIFF, PNG16, EXR, OBJ
 //   erg amplify DIR [--step S] [--region X0,Y0,W,H] [--upsample K] --out FILE.h5
 //                           a region upsampled with ripples and sand bumps (+ FILE.png)
+//   erg validate --out DIR [--quick]   measured laws of geomorphology (validate.cpp)
 // On ergd, the job service (remote/*.cpp; proto/erg/v1/service.proto):
 //   erg submit JOB.json [--watch] [--key K] [--steps N] [--snapshot-every K]
 //              [--checkpoint-every C] [--ranks P] [--threads T]   prints the job id
@@ -67,6 +68,9 @@ const CommandUsage kUsage[] = {
      "  erg amplify DIR [--step S] [--region X0,Y0,W,H] [--upsample K] --out FILE.h5\n"
      "                       a snapshot region upsampled K times (default 4) with ripples\n"
      "                       and sand bumps: HDF5 /height and a FILE.png preview\n"},
+    {"validate",
+     "  erg validate --out DIR [--quick] [--threads T] [--reuse]\n"
+     "                       run the geomorphology scenes, write DIR/report.md (laws, plots)\n"},
     {"submit",
      "  erg submit JOB.json [--watch] [--key IDEMPOTENCY_KEY] [--steps N] [--snapshot-every K]\n"
      "             [--checkpoint-every C] [--ranks P] [--threads T]\n"
@@ -165,6 +169,7 @@ int main(int argc, char** argv) {
   if (cmd == "check") return cmd_check(args);
   if (cmd == "export") return cmd_export(args);
   if (cmd == "amplify") return cmd_amplify(args);
+  if (cmd == "validate") return cmd_validate(args);
   if (cmd == "params") {
     std::cout << erg::job::parameter_table_markdown();
     return 0;

@@ -29,6 +29,8 @@ packages=(
   python3 python3-h5py python3-numpy
   # ... and read erg export's files: GDAL's Python bindings, PIL for 16-bit PNGs
   python3-gdal python3-pil
+  # erg validate: measurements (connected components) and the report's plots
+  python3-scipy python3-matplotlib
   # the Slurm launcher and its test cluster (slurmctld, slurmd, munge)
   slurmctld slurmd slurm-client munge
   # systemd-analyze verifies deploy/systemd/ergd.service

@@ -1,0 +1,540 @@
+#!/usr/bin/python3
+"""erg validate: run the fixed scenes of scenes/full (or scenes/quick) with
+erg-worker and measure laws of geomorphology on their heightfields; write
+OUT/report.md with one section per law (measured, expected with its source,
+pass or fail and by how much) and PNG plots. Thresholds: thresholds.json.
+
+Usually started by `erg validate --out DIR [--quick]`, which passes --worker.
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+import measure as M  # noqa: E402
+
+# The scenes every suite has; transverse_finest (a third resolution) is run
+# when the suite's folder holds it.
+SCENES = ("barchans", "transverse_coarse", "transverse_fine")
+OPTIONAL = ("transverse_finest",)
+
+
+def log(msg):
+    print(f"erg validate: {msg}", file=sys.stderr, flush=True)
+
+
+# --- running the scenes -----------------------------------------------------------
+
+def run_complete(out, job):
+    snaps = sorted((out / "snapshots").glob("step_*.h5"))
+    return bool(snaps) and snaps[-1].name == f"step_{job['run']['steps']:08d}.h5"
+
+
+def run_scene(worker, job_path, out, threads, reuse, index, count):
+    job = json.loads(job_path.read_text())
+    if out.exists():
+        if reuse and run_complete(out, job):
+            log(f"[{index}/{count}] {job['name']}: reusing {out}")
+            tf = Path(str(out) + ".time.json")
+            return time.time(), (json.loads(tf.read_text())["seconds"] if tf.exists() else None)
+        if reuse:
+            raise SystemExit(f"erg validate: {out} holds an incomplete run; remove it")
+        raise SystemExit(f"erg validate: {out} exists; choose a new --out or pass --reuse")
+    d = job["domain"]
+    log(f"[{index}/{count}] {job['name']}: {d['nx']} x {d['ny']} cells of {d['cell_size_m']} m, "
+        f"{job['run']['steps']} steps")
+    cmd = [worker, str(job_path), "--out", str(out), "--progress-fd", "1"]
+    if threads:
+        cmd += ["--threads", str(threads)]
+    env = dict(os.environ)
+    env.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    t0 = time.time()
+    with open(str(out) + ".log", "w") as errlog:
+        p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=errlog, text=True, env=env)
+        last = -1
+        for line in p.stdout:
+            try:
+                ev = json.loads(line)
+            except ValueError:
+                continue
+            if ev.get("event") == "progress":
+                step, steps = int(ev.get("step", 0)), int(ev.get("steps", 1))
+                decile = (10 * step) // max(steps, 1)
+                if decile != last:
+                    last = decile
+                    log(f"[{index}/{count}] {job['name']}: step {step}/{steps} "
+                        f"({time.time() - t0:.0f} s)")
+        rc = p.wait()
+    if rc != 0:
+        tail = Path(str(out) + ".log").read_text()[-2000:]
+        raise SystemExit(f"erg validate: erg-worker failed on {job_path} (exit {rc}):\n{tail}")
+    seconds = time.time() - t0
+    Path(str(out) + ".time.json").write_text(json.dumps({"seconds": round(seconds, 1)}) + "\n")
+    log(f"[{index}/{count}] {job['name']}: done in {seconds:.0f} s")
+    return t0, seconds
+
+
+def snapshots(run_dir):
+    return [M.load_snapshot(p) for p in sorted((run_dir / "snapshots").glob("step_*.h5"))]
+
+
+# --- laws -------------------------------------------------------------------------------
+
+def verdict(ok):
+    return "**PASS**" if ok else "**FAIL**"
+
+
+def fmt(x, nd=3):
+    return f"{x:.{nd}g}" if isinstance(x, float) else str(x)
+
+
+class Report:
+    def __init__(self, out):
+        self.out = out
+        self.lines = []
+        self.summary = []  # (law, verdict, one-line measured)
+
+    def add(self, *lines):
+        self.lines.extend(lines)
+
+    def law(self, name, ok, measured):
+        self.summary.append((name, ok, measured))
+
+
+def wind_of(job):
+    """The scenes blow one constant wind: the laws are stated for one."""
+    if "constant" not in job.get("wind", {}):
+        raise SystemExit(f"erg validate: scene {job.get('name')}: the laws need a constant wind")
+    return float(job["wind"]["constant"].get("direction_deg", 0.0))
+
+
+def plot_path(out, name):
+    (out / "plots").mkdir(exist_ok=True)
+    return out / "plots" / name
+
+
+def barchan_laws(rep, T, run_dir, job):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    det = T["detection"]
+    snaps = snapshots(run_dir)
+    cell = snaps[0]["cell_size_m"]
+    ny, nx = snaps[0]["sand"].shape
+    wind = wind_of(job)
+    first = int(len(snaps) * T["barchan_speed"]["fit_from_fraction"])
+    first = min(first, len(snaps) - 2)
+    window = snaps[first:]
+    frames = [M.dunes(s["sand"], cell, det["dune_sand_threshold_m"], det["dune_min_cells"])
+              for s in window]
+    steps = [s["step"] for s in window]
+    days = [s["time_days"] for s in window]
+    max_jump = 0.25 * min(nx, ny) * cell
+    tracks = M.track(frames, (nx * cell, ny * cell), max_jump)
+    rows = []
+    for t in tracks:
+        v_step = M.migration_speed((t["x"], t["y"]), steps, wind)
+        v_day = M.migration_speed((t["x"], t["y"]), days, wind)
+        rows.append({"y": t["y"][-1] % (ny * cell), "h": float(np.mean(t["h"])),
+                     "vol": float(np.mean(t["v"])), "v_step": v_step, "v_yr": v_day * 365.25,
+                     "x0": t["x"][0], "x1": t["x"][-1]})
+    rows.sort(key=lambda r: r["h"])
+
+    # --- 1. speed against height
+    S = T["barchan_speed"]
+    rep.add("## 1. Barchan migration speed against height", "")
+    rep.add(f"Scene `{run_dir.name}`: {len(job['layers']['sand'].get('piles', []))} isolated cones of sand on a "
+            f"non-erodible flat bed, one wind of {job['wind']['constant']['speed_mps']} m/s towards "
+            f"{wind:g} deg, STOCHASTIC transport. Dunes are the 8-connected bodies of sand thicker "
+            f"than {det['dune_sand_threshold_m']} m (periodic labelling), tracked by their "
+            f"sand-weighted centroid unwrapped on the torus over steps {steps[0]}-{steps[-1]} "
+            f"(the second half of the run); the speed is the least-squares slope of the along-wind "
+            f"position, the height the mean peak sand height over the same snapshots.", "")
+    rep.add("| dune (y, m) | height H (m) | volume (m^3) | speed (m/step) | speed (m/yr) |",
+            "|---|---|---|---|---|")
+    for r in rows:
+        rep.add(f"| {r['y']:.0f} | {r['h']:.2f} | {r['vol']:.0f} | {r['v_step']:.4f} | {r['v_yr']:.2f} |")
+    rep.add("")
+    ok_speed = False
+    if len(rows) >= 2 and all(r["v_step"] > 0 for r in rows):
+        slope, b, resid = M.loglog_fit([r["h"] for r in rows], [r["v_step"] for r in rows])
+        dev = slope - S["expected_slope"]
+        ok_speed = abs(dev) <= S["tolerance"]
+        rep.add(f"Fit log(speed) = a log(H) + b over {len(rows)} dunes: **a = {slope:.3f}** "
+                f"(rms residual {resid:.3f} in log units). Expected a = {S['expected_slope']:g} "
+                f"+/- {S['tolerance']:g}. {verdict(ok_speed)}: the exponent is {abs(dev):.2f} "
+                f"{'above' if dev > 0 else 'below'} the expected value"
+                + ("" if ok_speed else f", {abs(dev) - S['tolerance']:.2f} outside the tolerance")
+                + ".", "")
+        fig, ax = plt.subplots(figsize=(5, 4))
+        h = np.array([r["h"] for r in rows])
+        v = np.array([r["v_step"] for r in rows])
+        ax.loglog(h, v, "o", label="erg")
+        hh = np.linspace(h.min() * 0.9, h.max() * 1.1, 20)
+        ax.loglog(hh, np.exp(b) * hh ** slope, "-", label=f"fit, slope {slope:.2f}")
+        ax.loglog(hh, v[0] * (hh / h[0]) ** -1.0, "--", label="slope -1 (Bagnold)")
+        ax.set_xlabel("dune height H (m)")
+        ax.set_ylabel("migration speed (m/step)")
+        ax.legend()
+        ax.set_title("Barchan speed against height")
+        fig.tight_layout()
+        fig.savefig(plot_path(rep.out, "barchan_speed.png"), dpi=110)
+        plt.close(fig)
+        rep.add("![barchan speed](plots/barchan_speed.png)", "")
+        rep.law("Barchan speed ~ 1/H", ok_speed, f"slope {slope:.2f} (expected -1 +/- {S['tolerance']:g})")
+    else:
+        rep.add(f"{verdict(False)}: fewer than two dunes survived to be tracked "
+                f"({len(rows)}), or one did not move downwind.", "")
+        rep.law("Barchan speed ~ 1/H", False, f"{len(rows)} dunes tracked")
+    rep.add(f"Source: {S['source']}.", "")
+
+    # --- 2. shape
+    B = T["barchan_shape"]
+    repose = float(job.get("model", {}).get("repose_deg", 33.0))
+    last = snaps[-1]
+    height = last["sand"] + last["bedrock"]
+    final = M.dunes(last["sand"], cell, det["dune_sand_threshold_m"], det["dune_min_cells"])
+    ang, direction = M.steepest_descent(height, cell)
+    rel = np.radians(direction - wind)
+    rep.add("## 2. Barchan shape", "")
+    rep.add(f"Final snapshot (step {last['step']}). Aspect = peak height / horn-to-horn width "
+            f"(across-wind extent of the body); horns point downwind when the mean along-wind "
+            f"position of the outermost 10% (across the wind) lies downwind of the crest. Only "
+            f"dunes with a slip face (a lee cell within {B['slip_face_margin_deg']:g} deg of the "
+            f"repose angle {repose:g} deg) are judged.", "")
+    rep.add("| dune (y, m) | H (m) | W (m) | H/W | horn offset (m) | horns downwind | slip face |",
+            "|---|---|---|---|---|---|---|")
+    judged, ok_shape = 0, True
+    aspects = []
+    for d in final:
+        sh = M.barchan_shape(d, last["sand"], cell, wind)
+        lee = (np.cos(rel[d["iy"], d["ix"]]) > 0) & (ang[d["iy"], d["ix"]] >= repose - B["slip_face_margin_deg"])
+        slip = bool(lee.any())
+        rep.add(f"| {d['y_m']:.0f} | {sh['height_m']:.2f} | {sh['width_m']:.0f} | {sh['aspect']:.3f} | "
+                f"{sh['horn_offset_m']:+.1f} | {'yes' if sh['horns_downwind'] else 'no'} | "
+                f"{'yes' if slip else 'no'} |")
+        if slip:
+            judged += 1
+            good = B["min"] <= sh["aspect"] <= B["max"] and sh["horns_downwind"]
+            ok_shape = ok_shape and good
+            aspects.append(sh["aspect"])
+    rep.add("")
+    if judged == 0:
+        ok_shape = False
+        rep.add(f"{verdict(False)}: no dune with a slip face.", "")
+        rep.law("Barchan H/W ~ 0.1, horns downwind", False, "no dune with a slip face")
+    else:
+        worst = max(aspects, key=lambda a: max(B["min"] - a, a - B["max"], 0.0))
+        rep.add(f"Expected H/W = {B['expected_aspect']:g} within [{B['min']:g}, {B['max']:g}] and "
+                f"horns downwind, for each of the {judged} dunes with a slip face. {verdict(ok_shape)}: "
+                f"H/W from {min(aspects):.3f} to {max(aspects):.3f}"
+                + ("" if ok_shape else f" (worst {worst:.3f}, or horns not downwind)") + ".", "")
+        rep.law("Barchan H/W ~ 0.1, horns downwind", ok_shape,
+                f"H/W {min(aspects):.3f}-{max(aspects):.3f} over {judged} dunes")
+    fig, ax = plt.subplots(figsize=(7, 7 * ny / nx + 0.6))
+    im = ax.imshow(last["sand"], origin="lower", extent=(0, nx * cell, 0, ny * cell), cmap="YlOrBr")
+    for d in final:
+        ax.plot(d["x_m"], d["y_m"], "k+")
+    ax.annotate("", xy=(0.95 * nx * cell, 0.97 * ny * cell), xytext=(0.8 * nx * cell, 0.97 * ny * cell),
+                arrowprops=dict(arrowstyle="->"))
+    ax.text(0.8 * nx * cell, 0.92 * ny * cell, "wind", fontsize=8)
+    fig.colorbar(im, ax=ax, label="sand (m)", shrink=0.8)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"Barchans at step {last['step']} (+: centroids)")
+    fig.tight_layout()
+    fig.savefig(plot_path(rep.out, "barchans.png"), dpi=110)
+    plt.close(fig)
+    rep.add("![barchans](plots/barchans.png)", "")
+    rep.add(f"Source: {B['source']}.", "")
+
+    # --- 6 (data): migration rate
+    return rows, snaps, repose
+
+
+def migration_law(rep, T, rows, job):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    R = T["migration_rate"]
+    dt = float(job.get("model", {}).get("time_step_days", 10.0))
+    rep.add("## 6. Migration rate in physical units", "")
+    rep.add(f"The barchans of section 1 in metres per year, with model.time_step_days = {dt:g} "
+            f"({365.25 / dt:.2f} steps per year; the snapshots' time_days).", "")
+    if not rows:
+        rep.add(f"{verdict(False)}: no dune tracked.", "")
+        rep.law("Migration 1-100 m/yr", False, "no dune tracked")
+        return
+    rep.add("| dune height (m) | m/yr | in range |", "|---|---|---|")
+    ok = True
+    for r in rows:
+        inside = R["min_m_per_yr"] <= r["v_yr"] <= R["max_m_per_yr"]
+        ok = ok and inside
+        rep.add(f"| {r['h']:.2f} | {r['v_yr']:.2f} | {'yes' if inside else 'no'} |")
+    rep.add("")
+    lo, hi = min(r["v_yr"] for r in rows), max(r["v_yr"] for r in rows)
+    miss = ""
+    if not ok:
+        if lo < R["min_m_per_yr"]:
+            miss = f" (the slowest is {R['min_m_per_yr'] / max(lo, 1e-12):.1f}x below the range)"
+        else:
+            miss = f" (the fastest is {hi / R['max_m_per_yr']:.1f}x above the range)"
+    rep.add(f"Expected [{R['min_m_per_yr']:g}, {R['max_m_per_yr']:g}] m/yr. {verdict(ok)}: "
+            f"{lo:.2f}-{hi:.2f} m/yr{miss}.", "")
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    ax.axhspan(R["min_m_per_yr"], R["max_m_per_yr"], color="0.9", label="observed barchans")
+    ax.semilogy([r["h"] for r in rows], [r["v_yr"] for r in rows], "o", label="erg")
+    ax.set_xlabel("dune height (m)")
+    ax.set_ylabel("migration (m/yr)")
+    ax.set_ylim(0.3, 300)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(plot_path(rep.out, "migration_rate.png"), dpi=110)
+    plt.close(fig)
+    rep.add("![migration rate](plots/migration_rate.png)", "")
+    rep.add(f"Source: {R['source']}.", "")
+    rep.law("Migration 1-100 m/yr", ok, f"{lo:.2f}-{hi:.2f} m/yr")
+
+
+def slip_face_law(rep, T, barchan_snaps, finals, repose, job):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    S = T["slip_face"]
+    det = T["detection"]
+    last = barchan_snaps[-1]
+    cell = last["cell_size_m"]
+    height = last["sand"] + last["bedrock"]
+    lee = M.lee_slopes_deg(height, last["sand"], cell, wind_of(job), det["dune_sand_threshold_m"])
+    top = repose + S["max_excess_deg"]
+    plo, phi, counts, edges = M.histogram_peak(lee, S["bin_deg"], top)
+    peak = 0.5 * (plo + phi)
+    # The fullest bin must lie in [repose - margin, repose + allowed residual].
+    ok_peak = plo >= repose - S["peak_below_repose_deg"] - 1e-9 and phi <= top + 1e-9
+    rep.add("## 3. Slip faces", "")
+    rep.add(f"Lee slopes: on the barchans' final snapshot (step {last['step']}), every cell with "
+            f"more than {det['dune_sand_threshold_m']} m of sand whose steepest descent (8 "
+            f"neighbours, as avalanching sees them) points downwind; {len(lee)} cells, histogram in "
+            f"{S['bin_deg']:g} deg bins, the last ending at repose + the allowed residual "
+            f"({top:g} deg). Expected: the fullest bin within "
+            f"{S['peak_below_repose_deg']:g} deg below the repose angle {repose:g} deg.", "")
+    rep.add(f"Fullest bin **{plo:.1f}-{phi:.1f} deg**. {verdict(ok_peak)}"
+            + ("" if ok_peak else f": {abs(peak - repose):.1f} deg from the repose angle") + ".", "")
+    rep.add("Steepest slope anywhere after each scene's last step, over every pair of neighbours "
+            "whose higher cell holds sand (what [N24] eq. 9 bounds); allowed: repose + "
+            f"{S['max_excess_deg']:g} deg.", "")
+    rep.add(f"| scene | steepest (deg) | sand pairs | above repose | above repose + {S['max_excess_deg']:g} "
+            "| within bound |", "|---|---|---|---|---|---|")
+    ok_max = True
+    worst = 0.0
+    for name, snap in finals:
+        h = snap["sand"] + snap["bedrock"]
+        mx, allang = M.max_sand_slope_deg(h, snap["sand"], snap["cell_size_m"])
+        within = mx <= repose + S["max_excess_deg"]
+        ok_max = ok_max and within
+        worst = max(worst, mx)
+        rep.add(f"| {name} | {mx:.2f} | {allang.size} | {int((allang > repose).sum())} | "
+                f"{int((allang > repose + S['max_excess_deg']).sum())} | {'yes' if within else 'no'} |")
+    rep.add("")
+    rep.add(f"{verdict(ok_max)}: steepest {worst:.2f} deg against {repose:g} + {S['max_excess_deg']:g}"
+            + ("" if ok_max else f", {worst - repose - S['max_excess_deg']:.2f} deg too steep") + ".", "")
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    ax.bar(edges[:-2], counts[:-1], width=S["bin_deg"] * 0.9, align="edge")
+    ax.axvline(repose, color="r", label=f"repose {repose:g} deg")
+    ax.set_xlim(0, 45)
+    ax.set_xlabel("lee slope (deg)")
+    ax.set_ylabel("cells")
+    ax.legend()
+    ax.set_title("Lee slopes of the barchans")
+    fig.tight_layout()
+    fig.savefig(plot_path(rep.out, "lee_slopes.png"), dpi=110)
+    plt.close(fig)
+    rep.add("![lee slopes](plots/lee_slopes.png)", "")
+    rep.add(f"Source: {S['source']}.", "")
+    rep.law("Slip faces at repose", ok_peak and ok_max, f"lee mode {plo:.1f}-{phi:.1f} deg, steepest {worst:.2f} deg")
+
+
+def transverse_law(rep, T, scenes):
+    """scenes: (name, final snapshot, job) from the coarsest cells to the finest."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    R = T["transverse"]
+    rep.add("## 4. Transverse dunes", "")
+    res = []
+    for name, snap, job in scenes:
+        h = snap["sand"] + snap["bedrock"]
+        cell = snap["cell_size_m"]
+        o = M.structure_orientation(h, cell)
+        sp = M.spectrum_wavelength(h, cell)
+        res.append({"name": name, "cell": cell, "h": h, "o": o, "sp": sp, "step": snap["step"],
+                    "angle": M.crest_wind_angle(o["crest_deg"], wind_of(job)),
+                    "spec_angle": M.crest_wind_angle((sp["wavevector_deg"] + 90) % 180, wind_of(job))})
+    c = res[0]
+    ny, nx = c["h"].shape
+    rep.add(f"The same {nx * c['cell']:g} m x {ny * c['cell']:g} m torus of abundant sand (2.5-3.5 m, "
+            f"random), one wind towards {wind_of(scenes[0][2]):g} deg, at "
+            + ", ".join(f"{r['cell']:g} m" for r in res) + f" cells; final snapshots (step {c['step']}). "
+            "Crest orientation from the structure tensor of the height gradient (coherence 1: "
+            "parallel ridges), and from the peak of the 2-D power spectrum; wavelength = 1 / "
+            "power-weighted mean |k| over the dominant band (|k| within a factor 2 of the "
+            "spectral peak).", "")
+    rep.add("| cells | crest-wind angle, tensor (deg) | coherence | crest-wind angle, spectrum (deg) "
+            "| wavelength (m) | spectral peak (m) |", "|---|---|---|---|---|---|")
+    for r in res:
+        rep.add(f"| {r['cell']:g} m | {r['angle']:.1f} | {r['o']['coherence']:.2f} | "
+                f"{r['spec_angle']:.1f} | {r['sp']['wavelength_m']:.1f} | "
+                f"{r['sp']['peak_wavelength_m']:.1f} |")
+    rep.add("")
+    lo = R["expected_crest_wind_angle_deg"] - R["angle_tolerance_deg"]
+    ok_angle = all(r["angle"] >= lo for r in res)
+    worst_angle = min(r["angle"] for r in res)
+    rep.add(f"Crests perpendicular to the wind (structure tensor): expected "
+            f"{R['expected_crest_wind_angle_deg']:g} +/- {R['angle_tolerance_deg']:g} deg at every "
+            f"resolution. {verdict(ok_angle)}: worst {worst_angle:.1f} deg"
+            + ("" if ok_angle else f", {lo - worst_angle:.1f} deg outside") + ".", "")
+    changes = []
+    for a, b in zip(res, res[1:]):
+        change = abs(b["sp"]["wavelength_m"] - a["sp"]["wavelength_m"]) / a["sp"]["wavelength_m"]
+        ok = change < R["max_wavelength_change"]
+        changes.append(change)
+        rep.add(f"Wavelength at {b['cell']:g} m cells against {a['cell']:g} m: "
+                f"{a['sp']['wavelength_m']:.1f} m -> {b['sp']['wavelength_m']:.1f} m, a change of "
+                f"**{100 * change:.1f}%** (allowed < {100 * R['max_wavelength_change']:g}%). {verdict(ok)}"
+                + ("" if ok else f": {100 * (change - R['max_wavelength_change']):.1f} points over")
+                + ".", "")
+    ok_wl = all(ch < R["max_wavelength_change"] for ch in changes)
+    fig, axes = plt.subplots(1, len(res) + 1, figsize=(4 * (len(res) + 1), 4))
+    for ax, r in zip(axes[:-1], res):
+        n = r["h"].shape[0]
+        im = ax.imshow(r["h"], origin="lower", extent=(0, n * r["cell"], 0, n * r["cell"]), cmap="terrain")
+        ax.set_title(f"{r['cell']:g} m cells, step {r['step']}")
+        ax.set_xlabel("x (m), wind ->")
+        fig.colorbar(im, ax=ax, shrink=0.8, label="height (m)")
+    for r in res:
+        h = r["h"] - r["h"].mean()
+        p = np.abs(np.fft.fft2(h)) ** 2
+        ky = np.fft.fftfreq(h.shape[0], d=r["cell"])[:, None]
+        kx = np.fft.fftfreq(h.shape[1], d=r["cell"])[None, :]
+        k = np.sqrt(kx * kx + ky * ky)
+        dk = 1.0 / (h.shape[1] * r["cell"])
+        bins = np.arange(0.5 * dk, 0.1, dk)
+        idx = np.digitize(k.ravel(), bins)
+        radial = np.bincount(idx, weights=p.ravel(), minlength=len(bins) + 1)[1:len(bins)]
+        centres = 0.5 * (bins[:-1] + bins[1:])
+        axes[-1].semilogy(1.0 / centres, radial / radial.max(), label=f"{r['cell']:g} m cells")
+        axes[-1].axvline(r["sp"]["wavelength_m"], ls="--", color=axes[-1].lines[-1].get_color())
+    axes[-1].set_xscale("log")
+    axes[-1].set_xlabel("wavelength (m)")
+    axes[-1].set_ylabel("radial power (normalised)")
+    axes[-1].legend()
+    axes[-1].set_title("Spectra (dashed: measured wavelength)")
+    fig.tight_layout()
+    fig.savefig(plot_path(rep.out, "transverse.png"), dpi=90)
+    plt.close(fig)
+    rep.add("![transverse](plots/transverse.png)", "")
+    rep.add(f"Source: {R['source']}.", "")
+    rep.law("Transverse crests perpendicular", ok_angle, f"worst crest-wind angle {worst_angle:.1f} deg")
+    rep.law("Transverse wavelength resolution-independent", ok_wl,
+            "change " + ", ".join(f"{100 * ch:.1f}%" for ch in changes)
+            + " per halving (" + " -> ".join(f"{r['cell']:g}" for r in res) + " m)")
+
+
+def mass_law(rep, T, runs):
+    A = T["mass"]
+    rep.add("## 5. Mass", "")
+    rep.add("For every scene, the exact total of sand on the ground plus airborne sand "
+            "(`sand_units_total + airborne_units_total`, integers of 2^-32 m) at every snapshot "
+            "from step 0 to the end, against the snapshot before. Intervals holding a timeline "
+            "event are listed apart (the scenes have none).", "")
+    rep.add("| scene | snapshots | intervals checked | total at step 0 (units) | total at end (units) "
+            "| largest drift (units) | event intervals |", "|---|---|---|---|---|---|---|")
+    ok = True
+    for name, snaps, job in runs:
+        events = [int(e.get("step", 0)) for e in job.get("events", [])]
+        checked, drifts, skipped = M.mass_balance(snaps, events)
+        worst = max((abs(d) for d in drifts), default=0)
+        ok = ok and worst <= A["allowed_drift_units"] and checked > 0 and snaps[0]["step"] == 0
+        rep.add(f"| {name} | {len(snaps)} | {checked} | {M.sand_total_units(snaps[0])} | "
+                f"{M.sand_total_units(snaps[-1])} | {worst} | {len(skipped)} |")
+    rep.add("")
+    rep.add(f"Expected drift: {A['allowed_drift_units']} units. {verdict(ok)}.", "")
+    rep.add(f"Source: {A['source']}.", "")
+    rep.law("Mass conserved exactly", ok, "exact" if ok else "drift")
+
+
+def main():
+    ap = argparse.ArgumentParser(prog="erg validate")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--quick", action="store_true", help="the small scenes (about 2 minutes)")
+    ap.add_argument("--worker", default="erg-worker")
+    ap.add_argument("--threads", type=int, default=0)
+    ap.add_argument("--reuse", action="store_true", help="reuse complete runs already in OUT/runs")
+    ap.add_argument("--scenes", default=None, help="folder of scene jobs (default: scenes/full or scenes/quick)")
+    a = ap.parse_args()
+    out = Path(a.out)
+    suite = "quick" if a.quick else "full"
+    scene_dir = Path(a.scenes) if a.scenes else HERE / "scenes" / suite
+    T = json.loads((HERE / "thresholds.json").read_text())
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    t_start = time.time()
+    jobs, dirs, timings = {}, {}, {}
+    names = list(SCENES) + [n for n in OPTIONAL if (scene_dir / f"{n}.json").exists()]
+    for i, name in enumerate(names, start=1):
+        jp = scene_dir / f"{name}.json"
+        jobs[name] = json.loads(jp.read_text())
+        dirs[name] = out / "runs" / jobs[name]["name"]
+        _, timings[name] = run_scene(a.worker, jp, dirs[name], a.threads, a.reuse, i, len(names))
+    log("measuring")
+    rep = Report(out)
+    rows, bsnaps, repose = barchan_laws(rep, T, dirs["barchans"], jobs["barchans"])
+    tnames = [n for n in names if n.startswith("transverse")]
+    ts = {n: snapshots(dirs[n]) for n in tnames}
+    finals = [(jobs["barchans"]["name"], bsnaps[-1])] + [(jobs[n]["name"], ts[n][-1]) for n in ts]
+    slip_face_law(rep, T, bsnaps, finals, repose, jobs["barchans"])
+    transverse_law(rep, T, [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in tnames])
+    mass_law(rep, T, [(jobs["barchans"]["name"], bsnaps, jobs["barchans"])] +
+             [(jobs[n]["name"], ts[n], jobs[n]) for n in ts])
+    migration_law(rep, T, rows, jobs["barchans"])
+
+    # Sections in the order of issue 7; the body was written in measurement order.
+    body = "\n".join(rep.lines)
+    parts = ["## " + p for p in body.split("## ") if p.strip()]
+    body = "\n".join(sorted(parts, key=lambda p: int(p[3:p.index(".")])))
+    passed = sum(1 for _, ok, _ in rep.summary if ok)
+    meta = [
+        f"# erg validation report ({suite} suite)", "",
+        f"Generated by `erg validate{' --quick' if a.quick else ''}` "
+        f"({time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; scenes in "
+        f"`client/validate/scenes/{suite}/`, thresholds and their sources in "
+        f"`client/validate/thresholds.json`, measurements in `client/validate/measure.py`). "
+        "Simulation wall time on this machine: "
+        + ", ".join(f"{jobs[n]['name']} " + (f"{timings[n]:.0f} s" if timings[n] is not None else "?")
+                    for n in names)
+        + (f" ({sum(timings.values()):.0f} s in all)" if None not in timings.values() else "")
+        + (" (runs reused from an earlier invocation)" if a.reuse else "") + ".", "",
+        f"**{passed} of {len(rep.summary)} laws pass.**", "",
+        "| law | result | measured |", "|---|---|---|",
+    ]
+    for name, ok, measured in rep.summary:
+        meta.append(f"| {name} | {'PASS' if ok else 'FAIL'} | {measured} |")
+    meta.append("")
+    text = "\n".join(meta) + "\n" + body + "\n"
+    tmp = out / "report.md.tmp"
+    tmp.write_text(text)
+    os.replace(tmp, out / "report.md")
+    log(f"{passed} of {len(rep.summary)} laws pass; report in {out / 'report.md'} "
+        f"({time.time() - t_start:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,229 @@
+"""The measurements of erg validate (client/validate/measure.py) on
+synthetic fields whose answers are known: a sinusoidal transverse field of
+known wavelength and orientation, a Gaussian pile moved by a known offset
+across the torus seam, a cone of known slope, a crescent of known width,
+exact power laws and mass ledgers."""
+import math
+import os
+import sys
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.environ.get("ERG_SOURCE_DIR", os.path.join(
+    os.path.dirname(__file__), "..", "..")), "client", "validate"))
+import measure as M  # noqa: E402
+
+
+def grid(nx, ny, cell):
+    x = (np.arange(nx) * cell)[None, :] * np.ones((ny, 1))
+    y = (np.arange(ny) * cell)[:, None] * np.ones((1, nx))
+    return x, y
+
+
+def gaussian_pile(nx, ny, cell, cx, cy, height, sigma):
+    x, y = grid(nx, ny, cell)
+    lx, ly = nx * cell, ny * cell
+    dx = M.wrap_delta(x - cx, lx)
+    dy = M.wrap_delta(y - cy, ly)
+    return height * np.exp(-(dx * dx + dy * dy) / (2 * sigma * sigma))
+
+
+class Spectrum(unittest.TestCase):
+    def test_transverse_sinusoid_along_x(self):
+        # Crests along y, wind along x: 6 wavelengths of 32 m on 192 m.
+        x, y = grid(96, 80, 2.0)
+        h = 1.5 * np.sin(2 * math.pi * x / 32.0) + 3.0
+        sp = M.spectrum_wavelength(h, 2.0)
+        self.assertAlmostEqual(sp["wavelength_m"], 32.0, places=6)
+        self.assertAlmostEqual(sp["peak_wavelength_m"], 32.0, places=6)
+        self.assertAlmostEqual(sp["wavevector_deg"], 0.0, places=6)
+        o = M.structure_orientation(h, 2.0)
+        self.assertAlmostEqual(o["gradient_deg"] % 180.0, 0.0, places=6)
+        self.assertAlmostEqual(o["crest_deg"], 90.0, places=6)
+        self.assertGreater(o["coherence"], 0.999)
+        self.assertAlmostEqual(M.crest_wind_angle(o["crest_deg"], 0.0), 90.0, places=6)
+        self.assertAlmostEqual(M.crest_wind_angle(o["crest_deg"], 90.0), 0.0, places=6)
+
+    def test_oblique_sinusoid(self):
+        # Wavevector (3 / 256, 4 / 256) cycles per metre on a 256 m torus at
+        # 1 m cells: wavelength 256 / 5 = 51.2 m, direction atan2(4, 3).
+        x, y = grid(256, 256, 1.0)
+        h = np.cos(2 * math.pi * (3 * x + 4 * y) / 256.0)
+        sp = M.spectrum_wavelength(h, 1.0)
+        self.assertAlmostEqual(sp["wavelength_m"], 51.2, places=6)
+        self.assertAlmostEqual(sp["wavevector_deg"], math.degrees(math.atan2(4, 3)), places=6)
+        o = M.structure_orientation(h, 1.0)
+        self.assertAlmostEqual(o["gradient_deg"], math.degrees(math.atan2(4, 3)), delta=0.2)
+        self.assertAlmostEqual(M.crest_wind_angle(o["crest_deg"], 0.0),
+                               90.0 - math.degrees(math.atan2(4, 3)), delta=0.2)
+
+    def test_wavelength_independent_of_cell_size(self):
+        # The same 40 m sinusoid sampled at 2, 1 and 0.5 m: the same metres.
+        for cell in (2.0, 1.0, 0.5):
+            n = int(200 / cell)
+            x, _ = grid(n, n, cell)
+            h = np.sin(2 * math.pi * x / 40.0)
+            self.assertAlmostEqual(M.spectrum_wavelength(h, cell)["wavelength_m"], 40.0, places=6)
+
+    def test_band_average_between_harmonics(self):
+        # Equal power at 5 and 6 cycles on 240 m: between 48 m and 40 m.
+        x, _ = grid(240, 16, 1.0)
+        h = np.sin(2 * math.pi * 5 * x / 240.0) + np.sin(2 * math.pi * 6 * x / 240.0)
+        wl = M.spectrum_wavelength(h, 1.0)["wavelength_m"]
+        self.assertAlmostEqual(wl, 1.0 / (5.5 / 240.0), places=6)
+
+
+class Tracking(unittest.TestCase):
+    def test_gaussian_pile_across_the_seam(self):
+        nx, ny, cell = 128, 64, 1.0
+        a = gaussian_pile(nx, ny, cell, 123.0, 32.0, 3.0, 4.0)  # cut by x = 0
+        b = gaussian_pile(nx, ny, cell, 123.0 + 12.0 - 128.0, 32.0, 3.0, 4.0)
+        fa = M.dunes(a, cell, 0.3, 10)
+        fb = M.dunes(b, cell, 0.3, 10)
+        self.assertEqual(len(fa), 1, "the seam must not cut the pile in two")
+        self.assertEqual(len(fb), 1)
+        self.assertAlmostEqual(fa[0]["x_m"], 123.0, places=6)
+        self.assertAlmostEqual(fa[0]["y_m"], 32.0, places=6)
+        self.assertAlmostEqual(fb[0]["x_m"], 7.0, places=6)
+        self.assertAlmostEqual(fa[0]["height_m"], 3.0, places=6)
+        tracks = M.track([fa, fb], (nx * cell, ny * cell), 30.0)
+        self.assertEqual(len(tracks), 1)
+        self.assertAlmostEqual(tracks[0]["x"][1] - tracks[0]["x"][0], 12.0, places=6)
+        v = M.migration_speed((tracks[0]["x"], tracks[0]["y"]), [0, 100], 0.0)
+        self.assertAlmostEqual(v, 0.12, places=8)
+
+    def test_three_frames_lap_the_torus_in_y(self):
+        nx, ny, cell = 64, 96, 0.5  # 48 m around in y
+        ys = [40.0, 46.0, 4.0]  # +6 m, then +6 m across the seam
+        frames = [M.dunes(gaussian_pile(nx, ny, cell, 16.0, y, 2.0, 2.0), cell, 0.2, 10) for y in ys]
+        tr = M.track(frames, (nx * cell, ny * cell), 10.0)
+        self.assertEqual(len(tr), 1)
+        np.testing.assert_allclose(tr[0]["y"], [40.0, 46.0, 52.0], atol=1e-6)
+        self.assertAlmostEqual(M.migration_speed((tr[0]["x"], tr[0]["y"]), [0, 1, 2], 90.0), 6.0,
+                               places=6)
+
+    def test_labels_join_across_both_seams(self):
+        m = np.zeros((10, 10), bool)
+        m[0, 0] = m[9, 9] = m[0, 9] = m[9, 0] = True  # the four corners: one body
+        m[5, 5] = True
+        labels, n = M.label_periodic(m)
+        self.assertEqual(n, 2)
+        self.assertEqual(len({labels[0, 0], labels[9, 9], labels[0, 9], labels[9, 0]}), 1)
+
+    def test_loglog_fit_exact_power_law(self):
+        h = np.array([2.0, 3.0, 5.0, 8.0])
+        slope, b, resid = M.loglog_fit(h, 0.4 / h)
+        self.assertAlmostEqual(slope, -1.0, places=9)
+        self.assertAlmostEqual(math.exp(b), 0.4, places=9)
+        self.assertLess(resid, 1e-9)
+
+
+class Slopes(unittest.TestCase):
+    def cone(self, angle_deg, cell=0.5, n=160, height=10.0):
+        x, y = grid(n, n, cell)
+        r = np.hypot(x - n * cell / 2, y - n * cell / 2)
+        return np.maximum(height - r * math.tan(math.radians(angle_deg)), 0.0)
+
+    def test_cone_of_known_slope(self):
+        for angle in (20.0, 30.0, 33.0):
+            h = self.cone(angle)
+            mx, pairs = M.max_sand_slope_deg(h, h, 0.5)
+            # The radial pairs (along the axes and diagonals) see the true
+            # slope; no pair can be steeper than the cone.
+            self.assertAlmostEqual(mx, angle, delta=0.05)
+            self.assertLessEqual(mx, angle + 1e-9)
+
+    def test_lee_slopes_of_a_cone(self):
+        h = self.cone(30.0)
+        # Away from the apex and the foot (where the cone meets the floor
+        # and a neighbour is flat) every cell sees the cone's slope.
+        flank = np.where((h > 1.0) & (h < 9.0), h, 0.0)
+        lee = M.lee_slopes_deg(h, flank, 0.5, 0.0, 0.01)
+        # The best of 8 directions is at most 22.5 deg off the fall line:
+        # slopes between atan(tan 30 cos 22.5) and 30 deg, on the lee half.
+        lo = math.degrees(math.atan(math.tan(math.radians(30)) * math.cos(math.radians(22.5))))
+        self.assertGreater(lee.size, 1000)
+        self.assertGreaterEqual(lee.min(), lo - 1e-6)
+        self.assertLessEqual(lee.max(), 30.0 + 1e-6)
+        plo, phi, counts, _ = M.histogram_peak(lee, 3.0, 30.5)
+        self.assertEqual((plo, phi), (27.5, 30.5))
+        # Wind from the other side: the lee is the other half, same count.
+        self.assertAlmostEqual(M.lee_slopes_deg(h, flank, 0.5, 180.0, 0.01).size, lee.size,
+                               delta=0.02 * lee.size)
+
+    def test_flat_sand_has_no_lee(self):
+        h = np.full((32, 32), 2.0)
+        self.assertEqual(M.lee_slopes_deg(h, h, 1.0, 0.0, 0.1).size, 0)
+        mx, _ = M.max_sand_slope_deg(h, h, 1.0)
+        self.assertEqual(mx, 0.0)
+
+    def test_bare_bedrock_steps_are_not_sand_slopes(self):
+        b = np.zeros((16, 16))
+        b[:, 8:] = 5.0  # a bedrock cliff, no sand anywhere
+        mx, pairs = M.max_sand_slope_deg(b, np.zeros_like(b), 1.0)
+        self.assertEqual(pairs.size, 0)
+        self.assertEqual(mx, 0.0)
+
+
+class Shape(unittest.TestCase):
+    def crescent(self):
+        # A U open downwind (+x): body x in [20, 30], |y| <= 15; horns
+        # x in (30, 50], 10 <= |y| <= 15; crest 5 m at (25, 0).
+        nx, ny = 96, 64
+        s = np.zeros((ny, nx))
+        for iy in range(ny):
+            for ix in range(nx):
+                y = iy - 32
+                if 20 <= ix <= 30 and abs(y) <= 15:
+                    s[iy, ix] = 2.0
+                elif 30 < ix <= 50 and 10 <= abs(y) <= 15:
+                    s[iy, ix] = 1.0
+        s[32, 25] = 5.0
+        return s
+
+    def test_crescent_width_aspect_and_horns(self):
+        s = self.crescent()
+        d = M.dunes(s, 1.0, 0.3, 10)
+        self.assertEqual(len(d), 1)
+        sh = M.barchan_shape(d[0], s, 1.0, 0.0)
+        self.assertAlmostEqual(sh["width_m"], 31.0)
+        self.assertAlmostEqual(sh["height_m"], 5.0)
+        self.assertAlmostEqual(sh["aspect"], 5.0 / 31.0)
+        self.assertTrue(sh["horns_downwind"])
+        # Tips: the cells within 3.1 m of either flank, body (x 20-30) and
+        # horn (x 31-50): mean x 35, 10 m downwind of the crest at x 25.
+        self.assertAlmostEqual(sh["horn_offset_m"], 10.0, places=6)
+        # The same dune under the opposite wind has its horns upwind.
+        self.assertFalse(M.barchan_shape(d[0], s, 1.0, 180.0)["horns_downwind"])
+
+    def test_crescent_across_the_seam(self):
+        s = np.roll(self.crescent(), 60, axis=1)  # body near x = 80, horns wrap past x = 0
+        d = M.dunes(s, 1.0, 0.3, 10)
+        self.assertEqual(len(d), 1)
+        sh = M.barchan_shape(d[0], s, 1.0, 0.0)
+        self.assertAlmostEqual(sh["width_m"], 31.0)
+        self.assertTrue(sh["horns_downwind"])
+
+
+class Mass(unittest.TestCase):
+    def snap(self, step, sand, air):
+        return {"step": step, "sand_units_total": sand, "airborne_units_total": air}
+
+    def test_exact_integers_beyond_float_precision(self):
+        big = 2 ** 62
+        snaps = [self.snap(0, big, 0), self.snap(100, big - 7, 7), self.snap(200, big - 1, 1)]
+        checked, drifts, skipped = M.mass_balance(snaps, [])
+        self.assertEqual((checked, drifts, skipped), (2, [0, 0], []))
+        snaps.append(self.snap(300, big, 0 + 1))  # one unit too many
+        checked, drifts, _ = M.mass_balance(snaps, [])
+        self.assertEqual(drifts[-1], 1)
+
+    def test_event_intervals_set_apart(self):
+        snaps = [self.snap(0, 10, 0), self.snap(100, 50, 0), self.snap(200, 50, 0)]
+        checked, drifts, skipped = M.mass_balance(snaps, [50])
+        self.assertEqual((checked, drifts, skipped), (1, [0], [(0, 100)]))
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,111 @@
+"""erg validate --quick as a user runs it: the report exists with every
+section, each section has numbers and a verdict, the plots it links exist,
+and the mass law passes exactly (sand is conserved to the unit in every
+scene). The other laws may fail on the quick scenes (too short to grow
+mature dunes): the report says so, and this test only requires it to."""
+import os
+import re
+import subprocess
+import tempfile
+import unittest
+from pathlib import Path
+
+ERG = os.environ["ERG_BIN"]
+SECTIONS = [
+    "## 1. Barchan migration speed against height",
+    "## 2. Barchan shape",
+    "## 3. Slip faces",
+    "## 4. Transverse dunes",
+    "## 5. Mass",
+    "## 6. Migration rate in physical units",
+]
+
+
+class Quick(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.out = Path(cls.tmp.name) / "validation"
+        cls.proc = subprocess.run([ERG, "validate", "--out", str(cls.out), "--quick"],
+                                  capture_output=True, text=True, timeout=175)
+        cls.report = (cls.out / "report.md").read_text() if (cls.out / "report.md").exists() else ""
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def test_runs_and_reports_progress(self):
+        self.assertEqual(self.proc.returncode, 0, self.proc.stderr[-3000:])
+        self.assertIn("erg validate: [1/3]", self.proc.stderr)
+        self.assertRegex(self.proc.stderr, r"\d+ of 7 laws pass; report in ")
+
+    def test_every_section_with_numbers_and_verdict(self):
+        parts = re.split(r"(?m)^(?=## )", self.report)
+        body = {p.splitlines()[0]: p for p in parts if p.startswith("## ")}
+        self.assertEqual(list(body), SECTIONS)
+        for title, text in body.items():
+            # A table of measured values: some cell holds a number.
+            self.assertRegex(text, r"\| [-+]?\d+(\.\d+)? \|", title + ": no measured number")
+            self.assertRegex(text, r"\*\*(PASS|FAIL)\*\*", title + ": no verdict")
+            self.assertIn("Source: ", text, title + ": no source")
+        self.assertRegex(self.report, r"\*\*\d of 7 laws pass\.\*\*")
+
+    def test_mass_law_passes_exactly(self):
+        mass = self.report.split("## 5. Mass")[1].split("\n## ")[0]
+        rows = [l for l in mass.splitlines() if l.startswith("| validate-")]
+        self.assertEqual(len(rows), 3)
+        for row in rows:
+            # scene | snapshots | intervals checked | total at 0 | at end | drift | events
+            cells = [c.strip() for c in row.strip().strip("|").split("|")]
+            self.assertEqual(int(cells[2]), int(cells[1]) - 1, row)
+            self.assertEqual(cells[3], cells[4], row)
+            self.assertEqual(cells[5], "0", row)
+            self.assertEqual(cells[6], "0", row)
+        # And from the snapshots themselves, independently of the report.
+        import h5py
+        for run in sorted((self.out / "runs").iterdir()):
+            if not run.is_dir():
+                continue
+            totals = set()
+            files = sorted((run / "snapshots").glob("step_*.h5"))
+            self.assertGreaterEqual(len(files), 3, run)
+            for f in files:
+                with h5py.File(f, "r") as h:
+                    a = h.attrs
+                    totals.add(int(str(a["sand_units_total"].decode() if isinstance(
+                        a["sand_units_total"], bytes) else a["sand_units_total"])) + int(str(
+                        a["airborne_units_total"].decode() if isinstance(
+                            a["airborne_units_total"], bytes) else a["airborne_units_total"])))
+            self.assertEqual(len(totals), 1, f"{run.name}: totals {totals}")
+        self.assertIn("Expected drift: 0 units. **PASS**", mass)
+        self.assertRegex(self.report, r"\| Mass conserved exactly \| PASS \| exact \|")
+
+    def test_plots_exist(self):
+        for png in re.findall(r"\]\((plots/[a-z_]+\.png)\)", self.report):
+            p = self.out / png
+            self.assertTrue(p.exists(), png)
+            self.assertEqual(p.read_bytes()[:8], b"\x89PNG\r\n\x1a\n")
+        self.assertGreaterEqual(len(re.findall(r"\]\(plots/", self.report)), 5)
+
+    def test_usage_errors(self):
+        p = subprocess.run([ERG, "validate"], capture_output=True, text=True, timeout=30)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("--out DIR is required", p.stderr)
+        self.assertIn("erg validate --out DIR [--quick]", p.stderr)
+        # An existing run is never overwritten without --reuse.
+        p = subprocess.run([ERG, "validate", "--out", str(self.out), "--quick"],
+                           capture_output=True, text=True, timeout=30)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("exists; choose a new --out or pass --reuse", p.stderr)
+
+    def test_thresholds_have_sources(self):
+        import json
+        src = Path(os.environ["ERG_SOURCE_DIR"]) / "client" / "validate" / "thresholds.json"
+        T = json.loads(src.read_text())
+        for law in ("barchan_speed", "barchan_shape", "slip_face", "transverse", "migration_rate",
+                    "mass"):
+            self.assertIn("source", T[law], law)
+
+
+if __name__ == "__main__":
+    unittest.main()
