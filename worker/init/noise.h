@@ -6,19 +6,11 @@
 #include <cmath>
 #include <cstdint>
 
+#include "core/hash.h"
+
 namespace erg::init {
 
-inline std::uint32_t hash3(std::uint32_t a, std::uint32_t b, std::uint32_t c) {
-  // Murmur-style finaliser over three words.
-  std::uint32_t h =
-      a * 0x9E3779B1u ^ (b + 0x7F4A7C15u) * 0x85EBCA77u ^ (c + 0x165667B1u) * 0xC2B2AE3Du;
-  h ^= h >> 16;
-  h *= 0x85EBCA6Bu;
-  h ^= h >> 13;
-  h *= 0xC2B2AE35u;
-  h ^= h >> 16;
-  return h;
-}
+using erg::hash3;  // core/hash.h
 
 // Noise in about [-1, 1] at lattice coordinates (u, v), periods px, py >= 1.
 inline double periodic_gradient_noise(double u, double v, int px, int py, std::uint32_t seed) {

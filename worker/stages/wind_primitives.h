@@ -29,6 +29,7 @@
 
 #include <cstdint>
 
+#include "core/hash.h"
 #include "core/hd.h"
 #include "core/vec2.h"
 
@@ -127,17 +128,7 @@ ERG_HD double vortex_psi(const Primitive& P, double x, double y) {
   return P.amp * psi;
 }
 
-ERG_HD std::uint32_t hash3(std::uint32_t a, std::uint32_t b, std::uint32_t c) {
-  // Murmur-style finaliser over three words (as init/noise.h).
-  std::uint32_t h =
-      a * 0x9E3779B1u ^ (b + 0x7F4A7C15u) * 0x85EBCA77u ^ (c + 0x165667B1u) * 0xC2B2AE3Du;
-  h ^= h >> 16;
-  h *= 0x85EBCA6Bu;
-  h ^= h >> 13;
-  h *= 0xC2B2AE35u;
-  h ^= h >> 16;
-  return h;
-}
+using erg::hash3;  // core/hash.h
 
 // Gradient (dot) of the lattice point (i, j), period (px, py), with one of 8
 // unit gradients picked by the hash (no trigonometry per point).
