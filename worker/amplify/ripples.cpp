@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <numbers>
 
 #include "amplify/sampling.h"
 #include "core/philox.h"
@@ -9,6 +12,37 @@
 namespace erg::amplify {
 
 using detail::wrap;
+
+namespace {
+
+// Drops `amount` at the off-lattice point (x, y) of the periodic grid, split
+// bilinearly over the four cells around it (oblique winds land between cells).
+void drop(std::vector<double>& h, int nx, int ny, double x, double y, double amount) {
+  const double fx = std::floor(x), fy = std::floor(y);
+  const double ax = x - fx, ay = y - fy;
+  int i0 = static_cast<int>(fx), j0 = static_cast<int>(fy);
+  int i1 = i0 + 1, j1 = j0 + 1;
+  if (i0 < 0 || i1 >= nx) i0 = wrap(i0, nx), i1 = wrap(i1, nx);
+  if (j0 < 0 || j1 >= ny) j0 = wrap(j0, ny), j1 = wrap(j1, ny);
+  h[static_cast<size_t>(j0) * nx + i0] += amount * (1 - ax) * (1 - ay);
+  h[static_cast<size_t>(j0) * nx + i1] += amount * ax * (1 - ay);
+  h[static_cast<size_t>(j1) * nx + i0] += amount * (1 - ax) * ay;
+  h[static_cast<size_t>(j1) * nx + i1] += amount * ax * ay;
+}
+
+// The height at the off-lattice point (x, y) of the periodic grid, bilinear.
+double bilinear(const std::vector<double>& h, int nx, int ny, double x, double y) {
+  const double fx = std::floor(x), fy = std::floor(y);
+  const double ax = x - fx, ay = y - fy;
+  const int i0 = wrap(static_cast<int>(fx), nx), i1 = wrap(static_cast<int>(fx) + 1, nx);
+  const int j0 = wrap(static_cast<int>(fy), ny), j1 = wrap(static_cast<int>(fy) + 1, ny);
+  return h[static_cast<size_t>(j0) * nx + i0] * (1 - ax) * (1 - ay) +
+         h[static_cast<size_t>(j0) * nx + i1] * ax * (1 - ay) +
+         h[static_cast<size_t>(j1) * nx + i0] * (1 - ax) * ay +
+         h[static_cast<size_t>(j1) * nx + i1] * ax * ay;
+}
+
+}  // namespace
 
 std::vector<PastWind> past_winds(const std::vector<Vec2>& history) {
   std::vector<PastWind> out;
@@ -58,6 +92,9 @@ std::vector<float> ripple_relief(const RippleGrid& g, const std::vector<PastWind
   const double hop_per_mps = p.ripple_hop_cells_per_mps();
   const double hop_max = p.ripple_hop_max_cells();
   const double creep = p.ripple_creep();
+  const double reptation = p.ripple_reptation();
+  const double rep_hop = p.ripple_reptation_hop_cells();
+  const double tan_impact = std::tan(p.ripple_impact_angle_deg() * std::numbers::pi / 180);
   const double golden = 0.61803398874989485;
   const size_t nwinds = std::max<size_t>(1, winds.size());
 
@@ -90,20 +127,23 @@ std::vector<float> ripple_relief(const RippleGrid& g, const std::vector<PastWind
         if (lift <= 0 || speed < 1e-6) continue;
         const double l0 = std::min(hop_per_mps * speed, hop_max);
         if (l0 <= 0) continue;
+        const double dx = ct * ux0[c] - st * uy0[c], dy = st * ux0[c] + ct * uy0[c];
         const double hop = std::clamp(l0 + b * h[c], 0.0, 2 * hop_max);
-        const double tx = i + hop * (ct * ux0[c] - st * uy0[c]);
-        const double ty = j + hop * (st * ux0[c] + ct * uy0[c]);
-        const double fx = std::floor(tx), fy = std::floor(ty);
-        const double ax = tx - fx, ay = ty - fy;
-        int i0 = static_cast<int>(fx), j0 = static_cast<int>(fy);
-        int i1 = i0 + 1, j1 = j0 + 1;
-        if (i0 < 0 || i1 >= nx) i0 = wrap(i0, nx), i1 = wrap(i1, nx);
-        if (j0 < 0 || j1 >= ny) j0 = wrap(j0, ny), j1 = wrap(j1, ny);
         next[c] -= lift;
-        next[static_cast<size_t>(j0) * nx + i0] += lift * (1 - ax) * (1 - ay);
-        next[static_cast<size_t>(j0) * nx + i1] += lift * ax * (1 - ay);
-        next[static_cast<size_t>(j1) * nx + i0] += lift * (1 - ax) * ay;
-        next[static_cast<size_t>(j1) * nx + i1] += lift * ax * ay;
+        drop(next, nx, ny, i + hop * dx, j + hop * dy, lift);
+        // Reptation splash [A87]: the saltating rain comes down at the impact
+        // angle theta onto the face between this cell and the point one cell
+        // upwind. Per unit of horizontal area a face rising downwind at slope
+        // tan(alpha) intercepts 1 + tan(alpha) / tan(theta) times the
+        // flat-bed impacts, a lee face steeper than theta none (impact
+        // shadow); each impact pushes grains a short hop downwind.
+        if (reptation <= 0) continue;
+        const double rise = h[c] - bilinear(h, nx, ny, i - dx, j - dy);
+        const double impacts = std::max(0.0, 1 + rise / tan_impact);
+        const double splash = reptation * lift * impacts;
+        if (splash <= 0) continue;
+        next[c] -= splash;
+        drop(next, nx, ny, i + rep_hop * dx, j + rep_hop * dy, splash);
       }
     }
 
@@ -124,6 +164,17 @@ std::vector<float> ripple_relief(const RippleGrid& g, const std::vector<PastWind
     }
   }
 
+  if (std::getenv("ERG_DEBUG_SLOPE")) {
+    double s2 = 0, hmax = -1e9, hmin = 1e9;
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) {
+        const double d = 0.5 * (h[j * nx + wrap(i + 1, nx)] - h[j * nx + wrap(i - 1, nx)]);
+        s2 += d * d;
+        hmax = std::max(hmax, h[j * nx + i]);
+        hmin = std::min(hmin, h[j * nx + i]);
+      }
+    std::fprintf(stderr, "slope rms %.4f, h range %.4f %.4f\n", std::sqrt(s2 / n), hmin, hmax);
+  }
   // Keep the ripples, not the drift of sand between open and sheltered
   // cells: H minus its mean over a window of several ripple wavelengths
   // (three periodic box blurs of radius 2 * L0max + 2, close to a Gaussian).

@@ -2,6 +2,11 @@
 // it [ON00 2(1)], on the upsampled (fine) grid. Each iteration:
 //   saltation: every cell lifts q (times its mobility) and drops it a hop
 //     L = L0 + b H downwind, L0 proportional to the local wind speed;
+//   reptation splash [A87]: the saltating grains rain in at a shallow impact
+//     angle theta; a cell takes 1 + tan(alpha) / tan(theta) of the flat-bed
+//     impacts (alpha its slope rising downwind, none in the impact shadow of
+//     a lee face steeper than theta) and each impact pushes grains a short
+//     hop downwind: stoss faces are stripped, the lee steepens;
 //   creep: diffusion, H += D (sum of the 4 neighbours / 6 + sum of the 4
 //     diagonals / 12 - H) (Nishimori & Ouchi's relaxation by gravity).
 // From seeded noise, H grows into ripples perpendicular to the wind whose
