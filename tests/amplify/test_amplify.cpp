@@ -206,8 +206,7 @@ TEST(Ripples, SteepLeeUnderOneWindSymmetricUnderAlternatingWinds) {
       asymmetry_along_x(detail_of(amplify_layers(one, kAll, kUp, p)), kCoarse * kUp);
   const Asymmetry a2 =
       asymmetry_along_x(detail_of(amplify_layers(alternating, kAll, kUp, p)), kCoarse * kUp);
-  std::printf("one wind: slope skewness %.3f, stoss/lee slope %.3f\n", a1.skewness,
-              a1.slope_ratio);
+  std::printf("one wind: slope skewness %.3f, stoss/lee slope %.3f\n", a1.skewness, a1.slope_ratio);
   std::printf("alternating: slope skewness %.3f, stoss/lee slope %.3f\n", a2.skewness,
               a2.slope_ratio);
   EXPECT_LT(a1.skewness, -0.2) << "the lee should be the steep face";
