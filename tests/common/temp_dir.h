@@ -40,7 +40,8 @@ class TempDir {
   // Names of the directory's entries, sorted.
   std::set<std::string> entries() const {
     std::set<std::string> names;
-    for (const auto& e : std::filesystem::directory_iterator(path_)) names.insert(e.path().filename().string());
+    for (const auto& e : std::filesystem::directory_iterator(path_))
+      names.insert(e.path().filename().string());
     return names;
   }
   // True when some entry looks like an erg temporary ("<name>.tmp-<pid>").

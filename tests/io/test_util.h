@@ -3,8 +3,6 @@
 // independent of the code under test (libpng's simplified API).
 #pragma once
 
-#include "../common/temp_dir.h"
-
 #include <gtest/gtest.h>
 #include <png.h>
 #include <sys/resource.h>
@@ -18,6 +16,8 @@
 #include <set>
 #include <string>
 #include <vector>
+
+#include "../common/temp_dir.h"
 
 namespace erg::io::testing {
 

@@ -3,8 +3,6 @@
 // go through erg's own io code (raw HDF5 C API, a hand-made 16-bit PNG).
 #pragma once
 
-#include "../common/temp_dir.h"
-
 #include <gtest/gtest.h>
 #include <hdf5.h>
 #include <unistd.h>
@@ -16,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/temp_dir.h"
 #include "erg/v1/job.pb.h"
 #include "job/spec.h"
 

@@ -54,8 +54,7 @@ std::string why(const Decomposition& d) {
 
 Decomposition decompose(int gnx, int gny, int ranks, int min_tile, int px, int py, int align_x,
                         int align_y) {
-  if (align_x < 1 || align_y < 1)
-    throw std::invalid_argument("tile alignment must be at least 1");
+  if (align_x < 1 || align_y < 1) throw std::invalid_argument("tile alignment must be at least 1");
   if (gnx <= 0 || gny <= 0)
     throw std::invalid_argument("cannot decompose a domain of " + cells(gnx, gny) +
                                 " cells: both sides must be positive");

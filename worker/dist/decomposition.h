@@ -12,8 +12,8 @@
 namespace erg::dist {
 
 struct Decomposition {
-  int gnx = 0, gny = 0;  // global domain
-  int px = 1, py = 1;    // tiles along x, y
+  int gnx = 0, gny = 0;          // global domain
+  int px = 1, py = 1;            // tiles along x, y
   int chunk_x = 0, chunk_y = 0;  // ceil(gnx / px), ceil(gny / py)
 
   int x0(int i) const { return i * chunk_x; }

@@ -53,7 +53,9 @@ class PeriodicExchange final : public Exchange {
   void sum(Field<units_t>& f, int w) override;
   void sum_exact(std::vector<total_t>&) override {}
   bool any(bool local) override { return local; }
-  void gather_coarse(const std::vector<double>& mine, std::vector<double>& all) override { all = mine; }
+  void gather_coarse(const std::vector<double>& mine, std::vector<double>& all) override {
+    all = mine;
+  }
 };
 
 // The periodic wrap of a whole-domain tile (halos wider than the tile wrap

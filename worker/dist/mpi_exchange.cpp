@@ -49,7 +49,8 @@ void MpiExchange::sum_exact(std::vector<total_t>& v) {
     parts[2 * i] = static_cast<long long>(static_cast<unsigned long long>(v[i]) & 0xffffffffull);
     parts[2 * i + 1] = static_cast<long long>(v[i] >> 32);
   }
-  check(MPI_Allreduce(parts.data(), sums.data(), static_cast<int>(2 * n), MPI_LONG_LONG, MPI_SUM, cart_),
+  check(MPI_Allreduce(parts.data(), sums.data(), static_cast<int>(2 * n), MPI_LONG_LONG, MPI_SUM,
+                      cart_),
         "MPI_Allreduce (exact sums)");
   for (size_t i = 0; i < n; ++i)
     v[i] = static_cast<total_t>(sums[2 * i + 1]) * (static_cast<total_t>(1) << 32) + sums[2 * i];
@@ -65,7 +66,8 @@ void MpiExchange::gather_coarse(const std::vector<double>& mine, std::vector<dou
   int rank = 0;
   check(MPI_Comm_rank(cart_, &rank), "MPI_Comm_rank");
   if (static_cast<int>(mine.size()) != counts_[rank])
-    throw std::logic_error("gather_coarse: this tile's coarse cells do not match the decomposition");
+    throw std::logic_error(
+        "gather_coarse: this tile's coarse cells do not match the decomposition");
   std::vector<double> packed(static_cast<size_t>(displs_.back() + counts_.back()));
   check(MPI_Allgatherv(mine.data(), counts_[rank], MPI_DOUBLE, packed.data(), counts_.data(),
                        displs_.data(), MPI_DOUBLE, cart_),

@@ -49,8 +49,14 @@ template void fill_periodic(Field<units_t>&, int);
 template void fill_periodic(Field<float>&, int);
 template void sum_periodic(Field<units_t>&, int);
 
-void PeriodicExchange::fill(Field<units_t>& f, int w) { fill_periodic(f, w); }
-void PeriodicExchange::fill(Field<float>& f, int w) { fill_periodic(f, w); }
-void PeriodicExchange::sum(Field<units_t>& f, int w) { sum_periodic(f, w); }
+void PeriodicExchange::fill(Field<units_t>& f, int w) {
+  fill_periodic(f, w);
+}
+void PeriodicExchange::fill(Field<float>& f, int w) {
+  fill_periodic(f, w);
+}
+void PeriodicExchange::sum(Field<units_t>& f, int w) {
+  sum_periodic(f, w);
+}
 
 }  // namespace erg::dist
