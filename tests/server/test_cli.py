@@ -683,12 +683,16 @@ class Restart(CliTest):
         self.assertIn("erg: resumed from the last checkpoint (attempt 2)", err)
 
     def test_fetch_rides_out_ergd_killed_mid_download(self):
-        # 1024 x 1024: a snapshot larger than what gRPC buffers ahead (4 MiB).
-        job_id = self.submit(spec_json(name="big", nx=1024, ny=1024, steps=1, snapshot_every=1,
+        # 2048 x 2048: a snapshot (about 30 MiB) much larger than what can be
+        # in flight when ergd dies: gRPC's flow-control window (which BDP
+        # probing grows to several MiB) plus the loopback socket buffers (up
+        # to 6 MiB each way). At 1024 x 1024 (7.5 MiB) a CI run once had the
+        # whole file buffered under erg before the kill.
+        job_id = self.submit(spec_json(name="big", nx=2048, ny=2048, steps=1, snapshot_every=1,
                                        checkpoint_every=0))
         self.assertEqual(self.ergd.wait(job_id).state, S.SUCCEEDED)
         first, data = self.ergd.fetch_bytes(job_id, step=1)
-        self.assertGreater(len(data), 6 << 20)
+        self.assertGreater(len(data), 24 << 20)
         out_dir = os.path.join(self.tmp, "fetched")
         p, r = fetch_stopped_mid_download(self.env, job_id, 1, out_dir, first.name)
         try:
