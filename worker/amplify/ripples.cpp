@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <numbers>
 
 #include "amplify/sampling.h"
@@ -164,17 +162,6 @@ std::vector<float> ripple_relief(const RippleGrid& g, const std::vector<PastWind
     }
   }
 
-  if (std::getenv("ERG_DEBUG_SLOPE")) {
-    double s2 = 0, hmax = -1e9, hmin = 1e9;
-    for (int j = 0; j < ny; ++j)
-      for (int i = 0; i < nx; ++i) {
-        const double d = 0.5 * (h[j * nx + wrap(i + 1, nx)] - h[j * nx + wrap(i - 1, nx)]);
-        s2 += d * d;
-        hmax = std::max(hmax, h[j * nx + i]);
-        hmin = std::min(hmin, h[j * nx + i]);
-      }
-    std::fprintf(stderr, "slope rms %.4f, h range %.4f %.4f\n", std::sqrt(s2 / n), hmin, hmax);
-  }
   // Keep the ripples, not the drift of sand between open and sheltered
   // cells: H minus its mean over a window of several ripple wavelengths
   // (three periodic box blurs of radius 2 * L0max + 2, close to a Gaussian).
