@@ -74,6 +74,21 @@ img{height:96px;image-rendering:pixelated;border:1px solid #ccc}
 </style></head><body>
 )";
 
+// The sign-in page: the token goes in a POST body, so it stays out of the
+// address bar, the browser's history and the access logs of proxies.
+const char* kLoginPage = R"(<!doctype html>
+<html><head><meta charset="utf-8"><title>erg: sign in</title>
+<style>body{font-family:system-ui,sans-serif;margin:2em;color:#222}
+input{font:inherit;padding:.3em}</style></head><body>
+<h1>erg</h1>
+<form method="post" action="/login" id="login">
+<label>Token <input type="password" name="token" autocomplete="current-password" required></label>
+<button type="submit">Sign in</button>
+</form>
+<p>The bearer token from ergd's tokens file (<code>ERG_TOKEN</code>).</p>
+</body></html>
+)";
+
 }  // namespace
 
 HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const std::string& cert,
@@ -103,8 +118,9 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
     return who;
   };
 
-  s.Get("/login", [this](const httplib::Request& req, httplib::Response& res) {
-    const std::string token = req.get_param_value("token");
+  // Sign-in: a valid token becomes a session cookie and the browser goes on
+  // to the dashboard (303: the next request is a GET).
+  auto sign_in = [this](const std::string& token, httplib::Response& res) {
     if (token.empty() || !tokens_.tenant_of_token(token)) {
       res.status = 401;
       res.set_content("unknown token\n", "text/plain");
@@ -112,7 +128,19 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
     }
     res.set_header("Set-Cookie", "erg_token=" + token + "; Path=/; HttpOnly; SameSite=Strict" +
                                      (tls_ ? "; Secure" : ""));
-    res.set_redirect("/");
+    res.set_redirect("/", 303);
+  };
+  // GET /login shows the form; GET /login?token=T (for links and scripts)
+  // signs in directly, at the cost of T in the URL.
+  s.Get("/login", [sign_in](const httplib::Request& req, httplib::Response& res) {
+    if (!req.has_param("token")) {
+      res.set_content(kLoginPage, "text/html; charset=utf-8");
+      return;
+    }
+    sign_in(req.get_param_value("token"), res);
+  });
+  s.Post("/login", [sign_in](const httplib::Request& req, httplib::Response& res) {
+    sign_in(req.get_param_value("token"), res);
   });
 
   s.Get("/metrics", [this, tenant_of](const httplib::Request& req, httplib::Response& res) {
@@ -168,7 +196,11 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
 
   s.Get("/", [this, tenant_of](const httplib::Request& req, httplib::Response& res) {
     auto tenant = tenant_of(req, res);
-    if (!tenant) return;
+    if (!tenant) {
+      // Still a 401 for scripts; a browser gets the sign-in form.
+      res.set_content(kLoginPage, "text/html; charset=utf-8");
+      return;
+    }
     std::ostringstream o;
     o << kPage << "<h1>erg jobs of " << html_escape(*tenant) << "</h1>\n<table id=\"jobs\">\n"
       << "<tr><th>job</th><th>name</th><th>state</th><th>progress</th><th>steps/s</th>"

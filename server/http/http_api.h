@@ -6,10 +6,14 @@
 //   GET /api/jobs/ID           one job with its spec
 //   GET /api/jobs/ID/preview.png   the latest preview
 //   GET /metrics               Prometheus text format
-//   GET /login?token=T         sets a session cookie holding T (HttpOnly,
-//                              SameSite=Strict) and redirects to /: browsers
-//                              cannot send a bearer header on a page load
-// Every route but /login needs `Authorization: Bearer T` or that cookie.
+//   GET /login                 a sign-in form that POSTs the token
+//   POST /login (token=T)      sets a session cookie holding T (HttpOnly,
+//                              SameSite=Strict, Secure under TLS) and
+//                              redirects to / (303): browsers cannot send a
+//                              bearer header on a page load
+//   GET /login?token=T         the same in one link (T then shows in the URL)
+// Every route but /login needs `Authorization: Bearer T` or that cookie; an
+// unauthenticated GET / answers 401 with the sign-in form.
 #pragma once
 
 #include <memory>

@@ -8,6 +8,7 @@ import subprocess
 import tempfile
 import unittest
 import urllib.error
+import urllib.parse
 import urllib.request
 
 from ergd_fixture import ALICE, BOB, ErgdTest, S, md, spec_json
@@ -15,15 +16,25 @@ from ergd_fixture import ALICE, BOB, ErgdTest, S, md, spec_json
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 
 
-def get(url, token=None):
-    req = urllib.request.Request(url)
+def get(url, token=None, cookie=None, data=None):
+    """GET (POST with form `data`), without following redirects."""
+    req = urllib.request.Request(
+        url, data=urllib.parse.urlencode(data).encode() if data is not None else None)
     if token:
         req.add_header("Authorization", "Bearer " + token)
+    if cookie:
+        req.add_header("Cookie", cookie)
+    opener = urllib.request.build_opener(NoRedirect())
     try:
-        with urllib.request.urlopen(req, timeout=10) as r:
+        with opener.open(req, timeout=10) as r:
             return r.status, r.read(), r.headers
     except urllib.error.HTTPError as e:
         return e.code, e.read(), e.headers
+
+
+class NoRedirect(urllib.request.HTTPRedirectHandler):
+    def redirect_request(self, *args, **kwargs):
+        return None
 
 
 class Http(ErgdTest):
@@ -45,6 +56,33 @@ class Http(ErgdTest):
             self.assertIn("Bearer", headers.get("WWW-Authenticate", ""))
             self.assertEqual(get(self.ergd.http + path, "wrong-token-0123456789")[0], 401)
         self.assertEqual(get(self.ergd.http + "/login?token=wrong-token-0123456789")[0], 401)
+
+    def test_sign_in_form_posts_the_token_into_a_session_cookie(self):
+        # A browser without a session gets a 401 carrying the sign-in form,
+        # which POSTs the token (kept out of URLs and logs).
+        status, body, headers = get(self.ergd.http + "/")
+        self.assertEqual(status, 401)
+        self.assertIn("Bearer", headers.get("WWW-Authenticate", ""))
+        self.assertIn('<form method="post" action="/login"', body.decode())
+        status, body, _ = get(self.ergd.http + "/login")
+        self.assertEqual(status, 200)
+        self.assertIn('type="password" name="token"', body.decode())
+        # A wrong token gets no cookie.
+        status, _, headers = get(self.ergd.http + "/login", data={"token": "wrong-token-0123456789"})
+        self.assertEqual(status, 401)
+        self.assertIsNone(headers.get("Set-Cookie"))
+        # The right one: a session cookie and a 303 to the dashboard.
+        status, _, headers = get(self.ergd.http + "/login", data={"token": ALICE})
+        self.assertEqual(status, 303)
+        self.assertEqual(headers["Location"], "/")
+        cookie = headers["Set-Cookie"]
+        self.assertIn("HttpOnly", cookie)
+        self.assertIn("SameSite=Strict", cookie)
+        self.assertNotIn("Secure", cookie)  # plain HTTP here; test_tls checks Secure
+        status, body, _ = get(self.ergd.http + "/", cookie=cookie.split(";")[0])
+        self.assertEqual(status, 200)
+        self.assertIn('data-job="%s"' % self.job.id, body.decode())
+        self.assertNotIn(self.other.id, body.decode())
 
     def test_api_jobs_lists_only_the_tenants_jobs(self):
         status, body, headers = get(self.ergd.http + "/api/jobs", ALICE)
