@@ -9,6 +9,7 @@
 
 namespace erg::amplify {
 
+using detail::bilinear;
 using detail::wrap;
 
 namespace {
@@ -26,18 +27,6 @@ void drop(std::vector<double>& h, int nx, int ny, double x, double y, double amo
   h[static_cast<size_t>(j0) * nx + i1] += amount * ax * (1 - ay);
   h[static_cast<size_t>(j1) * nx + i0] += amount * (1 - ax) * ay;
   h[static_cast<size_t>(j1) * nx + i1] += amount * ax * ay;
-}
-
-// The height at the off-lattice point (x, y) of the periodic grid, bilinear.
-double bilinear(const std::vector<double>& h, int nx, int ny, double x, double y) {
-  const double fx = std::floor(x), fy = std::floor(y);
-  const double ax = x - fx, ay = y - fy;
-  const int i0 = wrap(static_cast<int>(fx), nx), i1 = wrap(static_cast<int>(fx) + 1, nx);
-  const int j0 = wrap(static_cast<int>(fy), ny), j1 = wrap(static_cast<int>(fy) + 1, ny);
-  return h[static_cast<size_t>(j0) * nx + i0] * (1 - ax) * (1 - ay) +
-         h[static_cast<size_t>(j0) * nx + i1] * ax * (1 - ay) +
-         h[static_cast<size_t>(j1) * nx + i0] * (1 - ax) * ay +
-         h[static_cast<size_t>(j1) * nx + i1] * ax * ay;
 }
 
 }  // namespace

@@ -12,9 +12,11 @@ inline int wrap(int i, int n) {
 }
 
 // Bilinear value of a periodic [ny][nx] field (stride components per cell,
-// component c) at coarse-cell coordinates (x, y), cell centres at integers.
-inline float bilinear(const std::vector<float>& f, int nx, int ny, double x, double y,
-                      int stride = 1, int c = 0) {
+// component c) at cell coordinates (x, y), cell centres at integers; summed
+// in double, returned in the field's type.
+template <typename T>
+inline T bilinear(const std::vector<T>& f, int nx, int ny, double x, double y, int stride = 1,
+                  int c = 0) {
   const double fx = std::floor(x), fy = std::floor(y);
   const double tx = x - fx, ty = y - fy;
   const int i0 = wrap(static_cast<int>(fx), nx), i1 = wrap(static_cast<int>(fx) + 1, nx);
@@ -22,8 +24,8 @@ inline float bilinear(const std::vector<float>& f, int nx, int ny, double x, dou
   auto at = [&](int i, int j) {
     return static_cast<double>(f[(static_cast<size_t>(j) * nx + i) * stride + c]);
   };
-  return static_cast<float>((1 - ty) * ((1 - tx) * at(i0, j0) + tx * at(i1, j0)) +
-                            ty * ((1 - tx) * at(i0, j1) + tx * at(i1, j1)));
+  return static_cast<T>((1 - ty) * ((1 - tx) * at(i0, j0) + tx * at(i1, j0)) +
+                        ty * ((1 - tx) * at(i0, j1) + tx * at(i1, j1)));
 }
 
 // Catmull-Rom bicubic value of a periodic [ny][nx] field at cell-centre
