@@ -16,6 +16,7 @@ import sys
 import tempfile
 import time
 import unittest
+import urllib.request
 
 sys.path.insert(0, os.environ["ERG_PYTHON_PROTO_DIR"])
 
@@ -65,6 +66,14 @@ def spec_of(d):
 
 def md(token):
     return [("authorization", "Bearer " + token)]
+
+
+class NoRedirect(urllib.request.HTTPRedirectHandler):
+    """For urllib openers that must see a redirect (e.g. /login's 303 and its
+    Set-Cookie) instead of following it."""
+
+    def redirect_request(self, *args, **kwargs):
+        return None
 
 
 def terminal(state):

@@ -11,7 +11,7 @@ import urllib.error
 import urllib.parse
 import urllib.request
 
-from ergd_fixture import ALICE, BOB, ErgdTest, S, md, spec_json
+from ergd_fixture import ALICE, BOB, ErgdTest, NoRedirect, spec_json
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 
@@ -30,11 +30,6 @@ def get(url, token=None, cookie=None, data=None):
             return r.status, r.read(), r.headers
     except urllib.error.HTTPError as e:
         return e.code, e.read(), e.headers
-
-
-class NoRedirect(urllib.request.HTTPRedirectHandler):
-    def redirect_request(self, *args, **kwargs):
-        return None
 
 
 class Http(ErgdTest):

@@ -10,7 +10,7 @@ import urllib.request
 
 import grpc
 
-from ergd_fixture import ALICE, ERGD, G, S, free_port, md
+from ergd_fixture import ALICE, ERGD, G, NoRedirect, S, free_port, md
 
 OPENSSL = shutil.which("openssl")
 
@@ -64,11 +64,6 @@ class Tls(unittest.TestCase):
             proc.wait(timeout=60)
             log.close()
             shutil.rmtree(tmp, ignore_errors=True)
-
-
-class NoRedirect(urllib.request.HTTPRedirectHandler):
-    def redirect_request(self, *args, **kwargs):
-        return None
 
 
 if __name__ == "__main__":
