@@ -23,6 +23,7 @@
 #include <thread>
 
 #include "api/job_service.h"
+#include "api/malformed_requests.h"
 #include "auth/tokens.h"
 #include "http/http_api.h"
 #include "launch/local_launcher.h"
@@ -224,6 +225,9 @@ int main(int argc, char** argv) {
     quota.SetMaxThreads(512);  // streams hold a thread each (watchers, downloads)
     builder.SetResourceQuota(quota);
     builder.RegisterService(&service);
+    std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> hooks;
+    hooks.push_back(erg::server::malformed_request_interceptor());
+    builder.experimental().SetInterceptorCreators(std::move(hooks));
     std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
     if (!server || port == 0) throw std::runtime_error("cannot listen on " + listen + " (gRPC)");
     if (auto* health = server->GetHealthCheckService())

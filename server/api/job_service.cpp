@@ -4,6 +4,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "auth/request_checks.h"
 #include "util/sha256.h"
 
 namespace erg::server {
@@ -36,6 +37,8 @@ const char* code_name(grpc::StatusCode c) {
       return "OUT_OF_RANGE";
     case grpc::StatusCode::UNAUTHENTICATED:
       return "UNAUTHENTICATED";
+    case grpc::StatusCode::PERMISSION_DENIED:
+      return "PERMISSION_DENIED";
     default:
       return "INTERNAL";
   }
@@ -99,6 +102,7 @@ grpc::Status JobService::SubmitJob(grpc::ServerContext* ctx, const erg::v1::Subm
 grpc::Status JobService::GetJob(grpc::ServerContext* ctx, const erg::v1::GetJobRequest* req,
                                 erg::v1::Job* out) {
   return call("GetJob", ctx, [&](const std::string& tenant) {
+    check_job_id(req->id());
     *out = mgr_.get(tenant, req->id());
     return grpc::Status::OK;
   });
@@ -134,6 +138,7 @@ grpc::Status JobService::ListJobs(grpc::ServerContext* ctx, const erg::v1::ListJ
 grpc::Status JobService::CancelJob(grpc::ServerContext* ctx, const erg::v1::CancelJobRequest* req,
                                    erg::v1::Job* out) {
   return call("CancelJob", ctx, [&](const std::string& tenant) {
+    check_job_id(req->id());
     *out = mgr_.cancel(tenant, req->id());
     return grpc::Status::OK;
   });
@@ -143,6 +148,7 @@ grpc::Status JobService::WatchJob(grpc::ServerContext* ctx, const erg::v1::Watch
                                   grpc::ServerWriter<erg::v1::JobEvent>* writer) {
   std::string tenant;
   grpc::Status st = call("WatchJob", ctx, [&](const std::string& t) {
+    check_job_id(req->id());
     (void)mgr_.get(t, req->id());
     tenant = t;
     return grpc::Status::OK;
@@ -183,6 +189,7 @@ grpc::Status JobService::StreamSnapshot(grpc::ServerContext* ctx,
   std::int64_t step = 0, size = 0;
   std::string sha;
   grpc::Status st = call("StreamSnapshot", ctx, [&](const std::string& tenant) {
+    check_job_id(req->id());
     const erg::v1::Job job = mgr_.get(tenant, req->id());
     step = snapshot_step(job, req->latest(), req->step());
     path = mgr_.snapshot_path(job.id(), step);
@@ -230,6 +237,7 @@ grpc::Status JobService::StreamSnapshot(grpc::ServerContext* ctx,
 grpc::Status JobService::GetPreview(grpc::ServerContext* ctx, const erg::v1::GetPreviewRequest* req,
                                     erg::v1::Preview* out) {
   return call("GetPreview", ctx, [&](const std::string& tenant) {
+    check_job_id(req->id());
     const erg::v1::Job job = mgr_.get(tenant, req->id());
     const std::int64_t step = snapshot_step(job, req->latest(), req->step());
     std::ifstream f(mgr_.preview_path(job.id(), step), std::ios::binary);
@@ -248,6 +256,7 @@ grpc::Status JobService::GetPreview(grpc::ServerContext* ctx, const erg::v1::Get
 grpc::Status JobService::SteerJob(grpc::ServerContext* ctx, const erg::v1::SteerJobRequest* req,
                                   erg::v1::SteerJobResponse* out) {
   return call("SteerJob", ctx, [&](const std::string& tenant) {
+    check_job_id(req->id());
     *out = mgr_.steer(tenant, req->id(), {req->events().begin(), req->events().end()});
     return grpc::Status::OK;
   });

@@ -7,6 +7,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "auth/request_checks.h"
+
 namespace erg::server {
 
 namespace {
@@ -167,6 +169,7 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
     auto tenant = tenant_of(req, res);
     if (!tenant) return;
     try {
+      check_job_id(req.matches[1]);
       res.set_content(job_json(mgr_.get(*tenant, req.matches[1]), true) + "\n", "application/json");
     } catch (const ApiError& e) {
       res.status = 404;
@@ -179,6 +182,7 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
           auto tenant = tenant_of(req, res);
           if (!tenant) return;
           try {
+            check_job_id(req.matches[1]);
             const auto job = mgr_.get(*tenant, req.matches[1]);
             std::ifstream f(mgr_.preview_path(job.id(), job.progress().latest_snapshot_step()),
                             std::ios::binary);

@@ -12,6 +12,7 @@
 #include <random>
 #include <sstream>
 
+#include "auth/request_checks.h"
 #include "job/progress_line.h"
 #include "job/spec.h"
 #include "sim/tiling.h"
@@ -149,8 +150,10 @@ void JobManager::set_state_locked(Job& job, JobState s, const std::string& note)
 // ---- calls ----------------------------------------------------------------
 
 Job JobManager::submit(const std::string& tenant, const erg::v1::SubmitJobRequest& req) {
+  refuse_map_files(req.spec());  // before anything reads the spec
+  // Size limits are RESOURCE_EXHAUSTED, as gRPC's own message size limit is.
   if (req.idempotency_key().size() > 128)
-    throw ApiError(grpc::StatusCode::INVALID_ARGUMENT,
+    throw ApiError(grpc::StatusCode::RESOURCE_EXHAUSTED,
                    "idempotency_key: " + std::to_string(req.idempotency_key().size()) +
                        " characters; at most 128");
   if (!req.idempotency_key().empty())
@@ -160,24 +163,12 @@ Job JobManager::submit(const std::string& tenant, const erg::v1::SubmitJobReques
   erg::v1::JobSpec spec = req.spec();
   const auto bytes = static_cast<std::int64_t>(spec.ByteSizeLong());
   if (bytes > cfg_.max_spec_bytes)
-    throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, "spec: " + std::to_string(bytes) +
-                                                           " bytes; at most " +
-                                                           std::to_string(cfg_.max_spec_bytes));
+    throw ApiError(grpc::StatusCode::RESOURCE_EXHAUSTED, "spec: " + std::to_string(bytes) +
+                                                             " bytes; at most " +
+                                                             std::to_string(cfg_.max_spec_bytes));
   std::vector<std::string> problems;
-  const auto& L = spec.layers();
-  const std::pair<const char*, const erg::v1::Layer*> layers[] = {{"bedrock", &L.bedrock()},
-                                                                  {"sand", &L.sand()},
-                                                                  {"vegetation", &L.vegetation()},
-                                                                  {"resistance", &L.resistance()}};
-  for (const auto& [name, layer] : layers)
-    if (layer->has_map())
-      problems.push_back(std::string("layers.") + name +
-                         ".map: map files are not accepted by ergd (it does not read its own "
-                         "file system for a tenant); use a generator, or erg run locally");
-  if (problems.empty()) {
-    job::apply_defaults(spec);
-    problems = job::validate(spec, "/nonexistent");
-  }
+  job::apply_defaults(spec);
+  problems = job::validate(spec, "/nonexistent");
   const auto& res = req.resources();
   if (res.ranks() < 0 || res.ranks() > cfg_.max_ranks)
     problems.push_back("resources.ranks: " + std::to_string(res.ranks()) + " is out of range [0, " +
@@ -305,10 +296,12 @@ Job JobManager::cancel(const std::string& tenant, const std::string& id) {
 erg::v1::SteerJobResponse JobManager::steer(const std::string& tenant, const std::string& id,
                                             const std::vector<erg::v1::Event>& events) {
   (void)get(tenant, id);
+  for (size_t k = 0; k < events.size(); ++k)
+    refuse_map_files(events[k], "events[" + std::to_string(k) + "]");
   if (events.empty())
     throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, "events: at least one event is needed");
   if (events.size() > 1000)
-    throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, "events: at most 1000 per call");
+    throw ApiError(grpc::StatusCode::RESOURCE_EXHAUSTED, "events: at most 1000 per call");
   std::unique_lock lock(mu_);
   auto it = running_.find(id);
   if (it == running_.end() || it->second.cancel_requested || it->second.stop_for_shutdown)

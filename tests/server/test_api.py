@@ -120,12 +120,13 @@ class Api(ErgdTest):
         self.assertIn("domain.nx", e.exception.details())
         self.assertIn("model.repose_deg", e.exception.details())
         self.assertIn("[1, 89]", e.exception.details())
-        # Map files are not read on a tenant's behalf.
+        # Map files are not read on a tenant's behalf (every map field:
+        # tests/security/test_maps.py).
         m = spec_json()
         m["layers"]["bedrock"] = {"map": {"path": "/etc/passwd"}}
         with self.assertRaises(grpc.RpcError) as e:
             self.ergd.submit(m)
-        self.assertEqual(e.exception.code(), grpc.StatusCode.INVALID_ARGUMENT)
+        self.assertEqual(e.exception.code(), grpc.StatusCode.PERMISSION_DENIED)
         self.assertIn("layers.bedrock.map", e.exception.details())
         # Resources are validated too.
         with self.assertRaises(grpc.RpcError) as e:
@@ -158,7 +159,8 @@ class Api(ErgdTest):
         d["name"] = "x" * (300 * 1024)
         with self.assertRaises(grpc.RpcError) as e:
             self.ergd.submit(d)
-        self.assertEqual(e.exception.code(), grpc.StatusCode.INVALID_ARGUMENT)
+        # Size errors are RESOURCE_EXHAUSTED, whichever limit says no.
+        self.assertEqual(e.exception.code(), grpc.StatusCode.RESOURCE_EXHAUSTED)
         self.assertIn("spec:", e.exception.details())
         d["name"] = "x" * (5 * 1024 * 1024)  # over the 4 MiB message limit
         with self.assertRaises(grpc.RpcError) as e:
