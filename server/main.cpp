@@ -3,6 +3,7 @@
 //        [--max-running N] [--max-ranks P] [--tls-cert F --tls-key F]
 //        [--cancel-grace S] [--max-job-disk BYTES] [--tenant-cell-steps N]
 //        [--worker PATH] [--mpirun PATH] [--max-attempts N]
+//        [--http-timeout S] [--http-per-address N] [--http-workers N]
 //        [--launcher local|slurm] [--slurm-template FILE] [--slurm-partition P]
 //        [--slurm-account A] [--slurm-time-limit MINUTES] [--slurm-gpus-per-node G]
 //        [--slurm-signal SECONDS]
@@ -44,6 +45,10 @@ void usage() {
          "            [--max-job-disk BYTES (0: none)] [--tenant-cell-steps N (0: none)]\n"
          "            [--worker PATH (erg-worker next to ergd)] [--mpirun PATH (mpirun)]\n"
          "            [--max-attempts N (10): restarts of a job stopped by a signal]\n"
+         "            [--http-timeout S (10): to send a request's headers, and then its body]\n"
+         "            [--http-per-address N (16): HTTP connections open at once per client "
+         "address]\n"
+         "            [--http-workers N (4): threads answering complete HTTP requests]\n"
          "            [--launcher local|slurm (local)]\n"
          "  Slurm:     [--slurm-template FILE (deploy/slurm/ergd-job.sbatch)]\n"
          "            [--slurm-partition P] [--slurm-account A] [--slurm-time-limit MINUTES (60)]\n"
@@ -76,6 +81,7 @@ std::pair<std::string, int> split_host_port(const std::string& flag, const std::
 int main(int argc, char** argv) {
   std::string listen, http, data, tokens_path, cert, key, worker, mpirun = "mpirun";
   erg::server::ManagerConfig cfg;
+  erg::server::FrontLimits http_limits;
   erg::server::SlurmConfig slurm;
   slurm.template_path = ERG_SLURM_TEMPLATE;
   std::string launcher_kind = "local";
@@ -130,6 +136,12 @@ int main(int argc, char** argv) {
         cfg.tenant_cell_steps = number(0, 1e30);
       else if (a == "--max-attempts")
         cfg.max_attempts = static_cast<int>(number(1, 1000));
+      else if (a == "--http-timeout")
+        http_limits.header_timeout_s = http_limits.body_timeout_s = number(0.1, 3600);
+      else if (a == "--http-per-address")
+        http_limits.per_address = static_cast<int>(number(1, 100000));
+      else if (a == "--http-workers")
+        http_limits.workers = static_cast<int>(number(1, 256));
       else if (a == "--launcher") {
         if (v != "local" && v != "slurm")
           throw std::invalid_argument("--launcher: '" + v + "' is not local or slurm");
@@ -236,7 +248,8 @@ int main(int argc, char** argv) {
     std::unique_ptr<erg::server::HttpApi> web;
     if (!http.empty()) {
       auto [host, hport] = split_host_port("--http", http);
-      web = std::make_unique<erg::server::HttpApi>(manager, tokens, metrics, cert, key);
+      web =
+          std::make_unique<erg::server::HttpApi>(manager, tokens, metrics, cert, key, http_limits);
       web->start(host, hport);
     }
     std::cerr << "ergd: serving erg.v1.JobService on " << listen << (cert.empty() ? "" : " (TLS)")

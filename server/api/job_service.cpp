@@ -62,6 +62,20 @@ std::int64_t snapshot_step(const erg::v1::Job& job, bool latest, std::int64_t st
 
 }  // namespace
 
+// An open stream re-checks its caller's token (the tokens file is re-read
+// when it changes): a revoked token ends the stream within a second.
+bool JobService::still_allowed(grpc::ServerContext* ctx, const std::string& tenant) {
+  const auto& md = ctx->client_metadata();
+  auto it = md.find("authorization");
+  if (it == md.end()) return false;
+  const auto who = tokens_.tenant_of_header(std::string(it->second.data(), it->second.size()));
+  return who && *who == tenant;
+}
+
+const grpc::Status JobService::kRevoked(grpc::StatusCode::UNAUTHENTICATED,
+                                        "the token was revoked (it is no longer in ergd's "
+                                        "tokens file)");
+
 template <class F>
 grpc::Status JobService::call(const char* method, grpc::ServerContext* ctx, F&& body) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -157,6 +171,7 @@ grpc::Status JobService::WatchJob(grpc::ServerContext* ctx, const erg::v1::Watch
   auto& store = mgr_.store();
   std::int64_t after = std::max<std::int64_t>(0, req->after_event_id());
   for (;;) {
+    if (!still_allowed(ctx, tenant)) return kRevoked;
     const std::uint64_t gen = store.generation();
     auto events = store.events_after(req->id(), after, 256);
     bool ended = false;
@@ -185,10 +200,11 @@ grpc::Status JobService::WatchJob(grpc::ServerContext* ctx, const erg::v1::Watch
 grpc::Status JobService::StreamSnapshot(grpc::ServerContext* ctx,
                                         const erg::v1::StreamSnapshotRequest* req,
                                         grpc::ServerWriter<erg::v1::SnapshotChunk>* writer) {
-  std::string path;
+  std::string path, tenant;
   std::int64_t step = 0, size = 0;
   std::string sha;
-  grpc::Status st = call("StreamSnapshot", ctx, [&](const std::string& tenant) {
+  grpc::Status st = call("StreamSnapshot", ctx, [&](const std::string& t) {
+    tenant = t;
     check_job_id(req->id());
     const erg::v1::Job job = mgr_.get(tenant, req->id());
     step = snapshot_step(job, req->latest(), req->step());
@@ -213,6 +229,7 @@ grpc::Status JobService::StreamSnapshot(grpc::ServerContext* ctx,
   bool first = true;
   const std::string name = path.substr(path.rfind('/') + 1);
   do {
+    if (!still_allowed(ctx, tenant)) return kRevoked;
     const std::int64_t want = std::min(kChunkBytes, size - offset);
     f.read(buf.data(), want);
     if (f.gcount() != want)

@@ -36,6 +36,8 @@ class JobService final : public erg::v1::JobService::Service {
  private:
   template <class F>
   grpc::Status call(const char* method, grpc::ServerContext* ctx, F&& body);
+  bool still_allowed(grpc::ServerContext* ctx, const std::string& tenant);
+  static const grpc::Status kRevoked;
   JobManager& mgr_;
   Tokens& tokens_;
   Metrics& metrics_;

@@ -2,8 +2,10 @@
 
 #include <google/protobuf/util/json_util.h>
 #include <httplib.h>
+#include <sys/socket.h>
 
 #include <chrono>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -49,9 +51,11 @@ std::string job_json(erg::v1::Job job, bool with_spec) {
   return out;
 }
 
-std::string cookie_token(const httplib::Request& req) {
+constexpr const char* kSessionCookie = "erg_session";
+
+std::string cookie_value(const httplib::Request& req, const std::string& name) {
   const std::string cookies = req.get_header_value("Cookie");
-  const std::string key = "erg_token=";
+  const std::string key = name + "=";
   size_t p = 0;
   while ((p = cookies.find(key, p)) != std::string::npos) {
     if (p == 0 || cookies[p - 1] == ' ' || cookies[p - 1] == ';') {
@@ -91,63 +95,102 @@ input{font:inherit;padding:.3em}</style></head><body>
 </body></html>
 )";
 
+// A request the front read completely, as an httplib stream: httplib parses
+// and routes it from memory and writes its answer into `out`.
+class MemoryStream final : public httplib::Stream {
+ public:
+  MemoryStream(const std::string& in, int fd, std::string ip, int port)
+      : in_(in), fd_(fd), ip_(std::move(ip)), port_(port) {}
+  bool is_readable() const override { return pos_ < in_.size(); }
+  bool is_writable() const override { return true; }
+  ssize_t read(char* ptr, size_t size) override {
+    const size_t n = std::min(size, in_.size() - pos_);
+    std::copy_n(in_.data() + pos_, n, ptr);
+    pos_ += n;
+    return static_cast<ssize_t>(n);
+  }
+  ssize_t write(const char* ptr, size_t size) override {
+    out.append(ptr, size);
+    return static_cast<ssize_t>(size);
+  }
+  void get_remote_ip_and_port(std::string& ip, int& port) const override {
+    ip = ip_;
+    port = port_;
+  }
+  void get_local_ip_and_port(std::string& ip, int& port) const override {
+    sockaddr_storage sa{};
+    socklen_t len = sizeof sa;
+    char host[64] = "";
+    char serv[16] = "0";
+    if (::getsockname(fd_, reinterpret_cast<sockaddr*>(&sa), &len) == 0)
+      (void)::getnameinfo(reinterpret_cast<sockaddr*>(&sa), len, host, sizeof host, serv,
+                          sizeof serv, NI_NUMERICHOST | NI_NUMERICSERV);
+    ip = host;
+    port = std::atoi(serv);
+  }
+  socket_t socket() const override { return fd_; }
+  std::string out;
+
+ private:
+  const std::string& in_;
+  size_t pos_ = 0;
+  int fd_;
+  std::string ip_;
+  int port_;
+};
+
+// Same-origin check for state-changing requests (sign-in, sign-out): a
+// browser sends Origin on a cross-origin POST, and Sec-Fetch-Site on
+// modern ones; either naming another site is refused. Scripts (curl) send
+// neither and pass.
+bool same_origin(const httplib::Request& req, bool tls) {
+  const std::string site = req.get_header_value("Sec-Fetch-Site");
+  if (!site.empty() && site != "same-origin" && site != "none") return false;
+  if (!req.has_header("Origin")) return true;
+  const std::string want = std::string(tls ? "https://" : "http://") + req.get_header_value("Host");
+  return req.get_header_value("Origin") == want;
+}
+
 }  // namespace
 
-HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const std::string& cert,
-                 const std::string& key)
-    : mgr_(manager), tokens_(tokens), metrics_(metrics) {
-  if (!cert.empty()) {
-    server_ = std::make_unique<httplib::SSLServer>(cert.c_str(), key.c_str());
-    tls_ = true;
-  } else {
-    server_ = std::make_unique<httplib::Server>();
+// httplib's routing, without its sockets: HttpFront reads the requests.
+class HttpRouter : public httplib::Server {
+ public:
+  std::string handle(const std::string& request, int fd, const std::string& ip, int port) {
+    MemoryStream s(request, fd, ip, port);
+    bool closed = false;
+    (void)process_request(s, true, closed, nullptr);
+    return std::move(s.out);
   }
-  auto& s = *server_;
-  // The tenant of a request, or a 401 answer.
+};
+
+HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const std::string& cert,
+                 const std::string& key, FrontLimits limits)
+    : mgr_(manager),
+      tokens_(tokens),
+      metrics_(metrics),
+      sessions_(tokens),
+      router_(std::make_unique<HttpRouter>()),
+      tls_(!cert.empty()) {
+  front_ = std::make_unique<HttpFront>(
+      limits,
+      [this](const std::string& request, int fd, const std::string& ip, int port) {
+        return router_->handle(request, fd, ip, port);
+      },
+      cert, key);
+  add_auth_routes();
+  auto& s = *router_;
   auto tenant_of = [this](const httplib::Request& req, httplib::Response& res) {
-    std::optional<std::string> who;
-    if (req.has_header("Authorization"))
-      who = tokens_.tenant_of_header(req.get_header_value("Authorization"));
-    if (!who) {
-      const std::string t = cookie_token(req);
-      if (!t.empty()) who = tokens_.tenant_of_token(t);
-    }
-    if (!who) {
-      res.status = 401;
-      res.set_header("WWW-Authenticate", "Bearer realm=\"ergd\"");
-      res.set_content("a bearer token from ergd's tokens file is required\n", "text/plain");
-    }
-    return who;
+    auto who = identity_of(req, res);
+    return who ? std::optional<std::string>(who->tenant) : std::nullopt;
   };
 
-  // Sign-in: a valid token becomes a session cookie and the browser goes on
-  // to the dashboard (303: the next request is a GET).
-  auto sign_in = [this](const std::string& token, httplib::Response& res) {
-    if (token.empty() || !tokens_.tenant_of_token(token)) {
-      res.status = 401;
-      res.set_content("unknown token\n", "text/plain");
-      return;
-    }
-    res.set_header("Set-Cookie", "erg_token=" + token + "; Path=/; HttpOnly; SameSite=Strict" +
-                                     (tls_ ? "; Secure" : ""));
-    res.set_redirect("/", 303);
-  };
-  // GET /login shows the form; GET /login?token=T (for links and scripts)
-  // signs in directly, at the cost of T in the URL.
-  s.Get("/login", [sign_in](const httplib::Request& req, httplib::Response& res) {
-    if (!req.has_param("token")) {
-      res.set_content(kLoginPage, "text/html; charset=utf-8");
-      return;
-    }
-    sign_in(req.get_param_value("token"), res);
-  });
-  s.Post("/login", [sign_in](const httplib::Request& req, httplib::Response& res) {
-    sign_in(req.get_param_value("token"), res);
-  });
-
-  s.Get("/metrics", [this, tenant_of](const httplib::Request& req, httplib::Response& res) {
-    if (!tenant_of(req, res)) return;
-    res.set_content(metrics_.text(), "text/plain; version=0.0.4");
+  // Operators see every series; a tenant sees only those of its own jobs.
+  s.Get("/metrics", [this](const httplib::Request& req, httplib::Response& res) {
+    auto who = identity_of(req, res);
+    if (!who) return;
+    res.set_content(who->is_operator ? metrics_.text() : metrics_.text_of_tenant(who->tenant),
+                    "text/plain; version=0.0.4");
   });
 
   s.Get("/api/jobs", [this, tenant_of](const httplib::Request& req, httplib::Response& res) {
@@ -206,7 +249,9 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
       return;
     }
     std::ostringstream o;
-    o << kPage << "<h1>erg jobs of " << html_escape(*tenant) << "</h1>\n<table id=\"jobs\">\n"
+    o << kPage << "<h1>erg jobs of " << html_escape(*tenant) << "</h1>\n"
+      << "<form method=\"post\" action=\"/logout\" id=\"logout\"><button type=\"submit\">"
+         "Sign out</button></form>\n<table id=\"jobs\">\n"
       << "<tr><th>job</th><th>name</th><th>state</th><th>progress</th><th>steps/s</th>"
          "<th>runs on</th><th>preview</th></tr>\n";
     std::int64_t last = 0;
@@ -243,16 +288,83 @@ HttpApi::~HttpApi() {
   stop();
 }
 
+// ---- authentication: bearer tokens, sessions, sign-in and sign-out ---------
+
+std::optional<Identity> HttpApi::identity_of(const httplib::Request& req, httplib::Response& res) {
+  std::optional<Identity> who;
+  if (req.has_header("Authorization"))
+    who = tokens_.identity_of_header(req.get_header_value("Authorization"));
+  else if (const std::string id = cookie_value(req, kSessionCookie); !id.empty())
+    who = sessions_.identity(id);
+  if (!who) {
+    res.status = 401;
+    res.set_header("WWW-Authenticate", "Bearer realm=\"ergd\"");
+    res.set_content("a bearer token from ergd's tokens file is required\n", "text/plain");
+  }
+  return who;
+}
+
+std::string HttpApi::session_cookie(const std::string& value, bool clear) const {
+  return std::string(kSessionCookie) + "=" + value + "; Path=/; HttpOnly; SameSite=Strict" +
+         (tls_ ? "; Secure" : "") + (clear ? "; Max-Age=0" : "");
+}
+
+void HttpApi::sign_in(const httplib::Request& req, const std::string& token,
+                      httplib::Response& res) {
+  if (const double wait = throttle_.wait_s(req.remote_addr); wait > 0) {
+    res.status = 429;
+    res.set_header("Retry-After", std::to_string(static_cast<int>(std::ceil(wait))));
+    res.set_content("too many failed sign-ins from this address; try again in " +
+                        std::to_string(static_cast<int>(std::ceil(wait))) + " s\n",
+                    "text/plain");
+    return;
+  }
+  auto session = token.empty() ? std::nullopt : sessions_.open(token);
+  if (!session) {
+    throttle_.failed(req.remote_addr);
+    res.status = 401;
+    res.set_content("unknown token\n", "text/plain");
+    return;
+  }
+  res.set_header("Set-Cookie", session_cookie(*session, false));
+  res.set_redirect("/", 303);
+}
+
+void HttpApi::add_auth_routes() {
+  auto& s = *router_;
+  auto cross_site = [](httplib::Response& res) {
+    res.status = 403;
+    res.set_content("cross-site request refused\n", "text/plain");
+  };
+  // GET /login shows the form; GET /login?token=T (for links and scripts)
+  // signs in directly, at the cost of T in the URL.
+  s.Get("/login", [this, cross_site](const httplib::Request& req, httplib::Response& res) {
+    if (!req.has_param("token")) {
+      res.set_content(kLoginPage, "text/html; charset=utf-8");
+      return;
+    }
+    if (!same_origin(req, tls_)) return cross_site(res);
+    sign_in(req, req.get_param_value("token"), res);
+  });
+  s.Post("/login", [this, cross_site](const httplib::Request& req, httplib::Response& res) {
+    if (!same_origin(req, tls_)) return cross_site(res);
+    sign_in(req, req.get_param_value("token"), res);
+  });
+  // Sign-out ends the session (the token stays valid) and clears the cookie.
+  s.Post("/logout", [this, cross_site](const httplib::Request& req, httplib::Response& res) {
+    if (!same_origin(req, tls_)) return cross_site(res);
+    if (const std::string id = cookie_value(req, kSessionCookie); !id.empty()) sessions_.close(id);
+    res.set_header("Set-Cookie", session_cookie("", true));
+    res.set_redirect("/login", 303);
+  });
+}
+
 void HttpApi::start(const std::string& host, int port) {
-  if (!server_->is_valid()) throw std::runtime_error("HTTP server: bad TLS certificate or key");
-  if (!server_->bind_to_port(host.c_str(), port))
-    throw std::runtime_error("cannot listen on " + host + ":" + std::to_string(port) + " (HTTP)");
-  thread_ = std::thread([this] { server_->listen_after_bind(); });
+  front_->start(host, port);
 }
 
 void HttpApi::stop() {
-  if (server_) server_->stop();
-  if (thread_.joinable()) thread_.join();
+  if (front_) front_->stop();
 }
 
 }  // namespace erg::server

@@ -1,50 +1,69 @@
-// ergd's HTTP side (cpp-httplib): for dashboards and monitoring.
+// ergd's HTTP side: for dashboards and monitoring.
 //   GET /                      the tenant's jobs: progress bars and the latest
 //                              preview, refreshing itself every 5 s
 //   GET /api/jobs              the tenant's jobs as JSON (protobuf JSON of
 //                              erg.v1.Job, without the spec)
 //   GET /api/jobs/ID           one job with its spec
 //   GET /api/jobs/ID/preview.png   the latest preview
-//   GET /metrics               Prometheus text format
+//   GET /metrics               Prometheus text format: every series for an
+//                              operator token, the tenant's own otherwise
 //   GET /login                 a sign-in form that POSTs the token
-//   POST /login (token=T)      sets a session cookie holding T (HttpOnly,
-//                              SameSite=Strict, Secure under TLS) and
-//                              redirects to / (303): browsers cannot send a
-//                              bearer header on a page load
+//   POST /login (token=T)      opens a session: a cookie holding a random
+//                              session id (HttpOnly, SameSite=Strict, Secure
+//                              under TLS), then 303 to /; throttled per
+//                              address, cross-site posts refused
 //   GET /login?token=T         the same in one link (T then shows in the URL)
-// Every route but /login needs `Authorization: Bearer T` or that cookie; an
-// unauthenticated GET / answers 401 with the sign-in form.
+//   POST /logout               ends the session, clears the cookie, 303 to
+//                              /login
+// Every route but /login needs `Authorization: Bearer T` or a session; an
+// unauthenticated GET / answers 401 with the sign-in form. Sockets, TLS,
+// timeouts and connection caps are HttpFront's (http/front.h); httplib only
+// parses and routes complete requests.
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
-#include <thread>
 
+#include "auth/sessions.h"
+#include "auth/throttle.h"
 #include "auth/tokens.h"
+#include "http/front.h"
 #include "metrics/metrics.h"
 #include "scheduler/job_manager.h"
 
 namespace httplib {
-class Server;
-}
+struct Request;
+struct Response;
+}  // namespace httplib
 
 namespace erg::server {
+
+class HttpRouter;
 
 class HttpApi {
  public:
   HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const std::string& tls_cert,
-          const std::string& tls_key);
+          const std::string& tls_key, FrontLimits limits = {});
   ~HttpApi();
-  // Binds host:port (throws when it cannot) and serves on a thread.
+  // Binds host:port (throws when it cannot) and serves on threads of its own.
   void start(const std::string& host, int port);
   void stop();
 
  private:
+  // The caller's identity (bearer header or session cookie), or a 401 in res.
+  std::optional<Identity> identity_of(const httplib::Request& req, httplib::Response& res);
+  void add_auth_routes();
+  void sign_in(const httplib::Request& req, const std::string& token, httplib::Response& res);
+  std::string session_cookie(const std::string& value, bool clear) const;
+
   JobManager& mgr_;
   Tokens& tokens_;
   Metrics& metrics_;
-  std::unique_ptr<httplib::Server> server_;
-  std::thread thread_;
+  Sessions sessions_;
+  SignInThrottle throttle_;
+  std::unique_ptr<HttpRouter> router_;
+  std::unique_ptr<HttpFront> front_;
   bool tls_ = false;
 };
 

@@ -54,4 +54,23 @@ std::string Metrics::text() {
   return prometheus::TextSerializer().Serialize(registry_->Collect());
 }
 
+std::string Metrics::text_of_tenant(const std::string& tenant) {
+  // Only series labelled with this tenant: the others would tell it about
+  // other tenants' jobs (ids, names, activity).
+  std::vector<prometheus::MetricFamily> mine;
+  for (auto& family : registry_->Collect()) {
+    std::vector<prometheus::ClientMetric> keep;
+    for (auto& m : family.metric)
+      for (const auto& l : m.label)
+        if (l.name == "tenant" && l.value == tenant) {
+          keep.push_back(std::move(m));
+          break;
+        }
+    if (keep.empty()) continue;
+    family.metric = std::move(keep);
+    mine.push_back(std::move(family));
+  }
+  return prometheus::TextSerializer().Serialize(mine);
+}
+
 }  // namespace erg::server

@@ -5,6 +5,8 @@
 //   erg_rpc_latency_seconds{method}       RPC handling time (histogram;
 //                                         streams: until the first message)
 //   erg_rpc_errors_total{method,code}     failed RPCs (counter)
+// An operator token reads them all; a tenant's token only the series
+// labelled with its tenant (server/http/http_api.h).
 #pragma once
 
 #include <prometheus/counter.h>
@@ -28,6 +30,8 @@ class Metrics {
   void set_rate(const std::string& job, const std::string& tenant, double steps_per_s);
   void remove_rate(const std::string& job, const std::string& tenant);
   std::string text();  // Prometheus text exposition format
+  // Only the series labelled tenant="TENANT" (what a tenant's token sees).
+  std::string text_of_tenant(const std::string& tenant);
 
  private:
   std::shared_ptr<prometheus::Registry> registry_;

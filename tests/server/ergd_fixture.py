@@ -36,6 +36,7 @@ ERG = os.path.join(BIN, "erg")
 ALICE = "tok-alice-0123456789abcdef"
 BOB = "tok-bob-0123456789abcdef00"
 CAROL = "tok-carol-0123456789abcdef"
+OPERATOR = "tok-operator-0123456789abc"  # role operator: every tenant's /metrics
 
 
 def free_port():
@@ -91,7 +92,8 @@ class Ergd:
         self.tokens = os.path.join(tmp, "tokens")
         if not os.path.exists(self.tokens):
             with open(self.tokens, "w") as f:
-                f.write("# test tokens\n%s alice\n%s bob\n%s carol\n" % (ALICE, BOB, CAROL))
+                f.write("# test tokens\n%s alice\n%s bob\n%s carol\n%s ops operator\n"
+                        % (ALICE, BOB, CAROL, OPERATOR))
         self.extra = list(extra_args)
         self.log = os.path.join(tmp, "ergd.log")
         self.proc = None

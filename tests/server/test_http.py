@@ -11,7 +11,7 @@ import urllib.error
 import urllib.parse
 import urllib.request
 
-from ergd_fixture import ALICE, BOB, ErgdTest, NoRedirect, spec_json
+from ergd_fixture import ALICE, BOB, OPERATOR, ErgdTest, NoRedirect, spec_json
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 
@@ -96,7 +96,9 @@ class Http(ErgdTest):
         self.assertEqual(png[:8], b"\x89PNG\r\n\x1a\n")
 
     def test_metrics_are_prometheus_text(self):
-        status, body, headers = get(self.ergd.http + "/metrics", ALICE)
+        # An operator token reads every series (a tenant's only its own:
+        # tests/security/test_http_auth.py).
+        status, body, headers = get(self.ergd.http + "/metrics", OPERATOR)
         self.assertEqual(status, 200)
         text = body.decode()
         self.assertIn('erg_jobs{state="SUCCEEDED"}', text)

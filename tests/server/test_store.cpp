@@ -1,20 +1,18 @@
 // ergd's building blocks without the network: the SQLite job store
-#include <fstream>
-// (persistence across reopen, idempotency keys, event log order, paging) and
-// the tokens file parser.
+// (persistence across reopen, idempotency keys, event log order, paging).
+// The tokens file: tests/security/test_tokens.cpp.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
-#include "auth/tokens.h"
 #include "store/job_store.h"
 #include "util/sha256.h"
 
 namespace fs = std::filesystem;
 using erg::server::JobStore;
-using erg::server::Tokens;
 
 namespace {
 
@@ -121,48 +119,6 @@ TEST(JobStore, WaitersWakeOnNewEvents) {
   EXPECT_NE(s.wait_events(gen, 10000), gen);
   EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(5));
   t.join();
-  fs::remove_all(d);
-}
-
-TEST(Tokens, ParsesTokenTenantLines) {
-  auto t = Tokens::parse("# comment\n\nabcdefghijklmnop alice  # trailing\nqrstuvwxyz012345 bob\n",
-                         "tokens");
-  EXPECT_EQ(t.size(), 2u);
-  EXPECT_EQ(t.at("abcdefghijklmnop"), "alice");
-  EXPECT_EQ(t.at("qrstuvwxyz012345"), "bob");
-}
-
-TEST(Tokens, RejectsMalformedFilesNamingTheLine) {
-  auto msg = [](const std::string& text) {
-    try {
-      Tokens::parse(text, "tokens");
-    } catch (const std::exception& e) {
-      return std::string(e.what());
-    }
-    return std::string("(accepted)");
-  };
-  EXPECT_EQ(msg("abcdefghijklmnop\n"), "tokens:1: expected `TOKEN TENANT` (two fields)");
-  EXPECT_EQ(msg("ok-ok-ok-ok-ok-ok a\nabcdefghijklmnop alice extra\n"),
-            "tokens:2: expected `TOKEN TENANT` (two fields)");
-  EXPECT_EQ(msg("short alice\n"), "tokens:1: token shorter than 16 characters");
-  EXPECT_EQ(msg("abcdefghijklmnop a\nabcdefghijklmnop b\n"), "tokens:2: duplicate token");
-}
-
-TEST(Tokens, BearerHeaderAndReloadOnChange) {
-  const fs::path d = temp_dir();
-  const fs::path f = d / "tokens";
-  { std::ofstream(f) << "abcdefghijklmnop alice\n"; }
-  Tokens t(f.string());
-  EXPECT_EQ(t.tenant_of_header("Bearer abcdefghijklmnop"), "alice");
-  EXPECT_FALSE(t.tenant_of_header("abcdefghijklmnop"));
-  EXPECT_FALSE(t.tenant_of_header("Bearer abcdefghijklmno"));  // a prefix is not the token
-  EXPECT_FALSE(t.tenant_of_header("Bearer "));
-  // Revoking and adding tokens needs no restart.
-  std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  { std::ofstream(f) << "qrstuvwxyz012345 bob\n"; }
-  fs::last_write_time(f, fs::file_time_type::clock::now() + std::chrono::seconds(1));
-  EXPECT_FALSE(t.tenant_of_header("Bearer abcdefghijklmnop"));
-  EXPECT_EQ(t.tenant_of_header("Bearer qrstuvwxyz012345"), "bob");
   fs::remove_all(d);
 }
 
