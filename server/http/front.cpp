@@ -46,7 +46,8 @@ struct HttpFront::Conn {
   SSL* ssl = nullptr;
   std::string ip;
   int port = 0;
-  enum State { kReading, kProcessing, kWriting } state = kReading;
+  enum State { kReading, kProcessing, kWriting, kDraining } state = kReading;
+  bool linger = false;  // answered before the whole request was read
   std::string in, out;
   size_t out_pos = 0;
   size_t header_end = 0;  // bytes of headers (with the blank line), 0: not yet
@@ -236,6 +237,7 @@ void HttpFront::on_accept() {
 }
 
 void HttpFront::answer(Conn& c, std::string text) {
+  c.linger = c.state == Conn::kReading;
   c.state = Conn::kWriting;
   c.out = std::move(text);
   c.out_pos = 0;
@@ -368,7 +370,27 @@ void HttpFront::write_some(Conn& c) {
     }
     c.out_pos += static_cast<size_t>(n);
   }
-  close_conn(c.id);  // the whole answer is out
+  // The whole answer is out. A client that was refused before it finished
+  // sending may still be sending: closing with its bytes unread would reset
+  // the connection, and it could lose the answer. Stop writing and read
+  // (and drop) what it sends, until it closes or for 2 s at most.
+  if (c.linger && !c.ssl && ::shutdown(c.fd, SHUT_WR) == 0) {
+    c.state = Conn::kDraining;
+    c.deadline = mono_s() + 2;
+    c.want_read = true;
+    c.want_write = false;
+    return watch(c);
+  }
+  close_conn(c.id);
+}
+
+void HttpFront::drain(Conn& c) {
+  char buf[16384];
+  for (int round = 0; round < 64; ++round) {
+    const ssize_t n = ::recv(c.fd, buf, sizeof buf, 0);
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) return;
+    if (n <= 0) return close_conn(c.id);
+  }
 }
 
 void HttpFront::on_event(Conn& c, std::uint32_t events) {
@@ -376,6 +398,8 @@ void HttpFront::on_event(Conn& c, std::uint32_t events) {
   if ((events & (EPOLLERR | EPOLLHUP)) && !(events & EPOLLIN)) return close_conn(c.id);
   if (c.state == Conn::kReading)
     read_some(c);
+  else if (c.state == Conn::kDraining)
+    drain(c);
   else
     write_some(c);
 }

@@ -76,6 +76,7 @@ class HttpFront {
   void on_event(Conn& c, std::uint32_t events);
   void read_some(Conn& c);
   void write_some(Conn& c);
+  void drain(Conn& c);
   void request_complete_or_not(Conn& c);
   void answer(Conn& c, std::string text);
   void close_conn(std::uint64_t id);
