@@ -69,6 +69,31 @@ class Revocation(ErgdTest):
                                      timeout=10)
             self.ergd.wait(job.id, CAROL)
 
+    def test_a_snapshot_download_ends_unauthenticated_when_revoked(self):
+        # A snapshot of tens of 1 MiB chunks, more than gRPC's flow-control
+        # window holds: the stream re-checks the token before each chunk.
+        job = self.ergd.submit(spec_json(nx=1536, ny=1536, steps=1, snapshot_every=1,
+                                         checkpoint_every=0, name="download"), token=CAROL)
+        self.ergd.wait(job.id, CAROL, timeout=120)
+        chunks, total = 0, None
+        try:
+            with self.assertRaises(grpc.RpcError) as e:
+                for c in self.ergd.stub.StreamSnapshot(S.StreamSnapshotRequest(id=job.id,
+                                                                               latest=True),
+                                                       metadata=md(CAROL), timeout=60):
+                    if chunks == 0:
+                        total = (c.size + (1 << 20) - 1) >> 20
+                        write_tokens(self.ergd.tokens,
+                                     STANDARD_TOKENS.replace(CAROL + " carol\n", ""))
+                    chunks += 1
+            self.assertEqual(e.exception.code(), grpc.StatusCode.UNAUTHENTICATED)
+            # Some chunks were in flight (gRPC's flow-control window), not all.
+            self.assertGreater(total, 12)
+            self.assertLess(chunks, total)
+            print("download of %d chunks ended after %d" % (total, chunks))
+        finally:
+            write_tokens(self.ergd.tokens, STANDARD_TOKENS)
+
     def test_bad_lines_are_logged_and_the_valid_lines_apply(self):
         text = ("# alice is revoked in an edit with mistakes\n"  # 1
                 "%s bob\n"                                     # 2
