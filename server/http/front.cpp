@@ -78,28 +78,39 @@ HttpFront::~HttpFront() {
   if (tls_) SSL_CTX_free(tls_);
 }
 
-void HttpFront::start(const std::string& host, int port) {
+void HttpFront::start(const std::string& host_in, int port) {
+  // "[::1]" as in a URL is the address ::1.
+  std::string host = host_in;
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
   addrinfo hints{}, *res = nullptr;
   hints.ai_family = AF_UNSPEC;
   hints.ai_socktype = SOCK_STREAM;
   hints.ai_flags = AI_PASSIVE;
-  const std::string where = host + ":" + std::to_string(port);
+  const std::string where = host_in + ":" + std::to_string(port);
   if (::getaddrinfo(host.empty() ? nullptr : host.c_str(), std::to_string(port).c_str(), &hints,
                     &res) != 0 ||
       !res)
     throw std::runtime_error("cannot listen on " + where + " (HTTP): unknown host");
-  listen_fd_ = ::socket(res->ai_family, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
-  const int one = 1;
-  if (listen_fd_ >= 0) ::setsockopt(listen_fd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-  const bool ok = listen_fd_ >= 0 && ::bind(listen_fd_, res->ai_addr, res->ai_addrlen) == 0 &&
-                  ::listen(listen_fd_, 1024) == 0;
-  ::freeaddrinfo(res);
-  if (!ok) {
-    const std::string why = std::strerror(errno);
-    if (listen_fd_ >= 0) ::close(listen_fd_);
-    listen_fd_ = -1;
-    throw std::runtime_error("cannot listen on " + where + " (HTTP): " + why);
+  // The first address of the name that can be bound (a name may have several).
+  std::string why = "no address";
+  for (addrinfo* ai = res; ai && listen_fd_ < 0; ai = ai->ai_next) {
+    const int fd = ::socket(ai->ai_family, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+    if (fd < 0) {
+      why = std::strerror(errno);
+      continue;
+    }
+    const int one = 1;
+    ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    if (::bind(fd, ai->ai_addr, ai->ai_addrlen) == 0 && ::listen(fd, 1024) == 0) {
+      listen_fd_ = fd;
+    } else {
+      why = std::strerror(errno);
+      ::close(fd);
+    }
   }
+  ::freeaddrinfo(res);
+  if (listen_fd_ < 0) throw std::runtime_error("cannot listen on " + where + " (HTTP): " + why);
   epoll_fd_ = ::epoll_create1(EPOLL_CLOEXEC);
   wake_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   epoll_event ev{};
