@@ -59,7 +59,8 @@ int cmd_validate(const std::vector<std::string>& args) {
     std::cerr << "erg validate: cannot find " << script << " (set ERG_VALIDATE_DIR)\n";
     return 1;
   }
-  // Debian's interpreter owns python3-h5py/-scipy/-matplotlib (DESIGN.md 5).
+  // Debian's interpreter owns python3-h5py/-scipy/-matplotlib (docs/design.md,
+  // "Platform notes").
   const char* py_env = std::getenv("ERG_PYTHON");
   std::string python = py_env ? py_env : "/usr/bin/python3";
   std::vector<std::string> argv_s = {python, script, "--worker", worker_path()};

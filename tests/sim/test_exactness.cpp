@@ -1,4 +1,4 @@
-// Exactness (DESIGN.md section 3, issue: "Exactness"): over 1000 steps on a
+// Exactness (docs/design.md, "Exactness"): over 1000 steps on a
 // non-square torus with the wind at 30 degrees to the grid, sand is conserved
 // to the unit (sand + bedrock with abrasion), never negative, and the fields
 // are bitwise identical for 1, 2 and 4 threads and between two runs, in both

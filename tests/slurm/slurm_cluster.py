@@ -1,5 +1,5 @@
 """A one-node Slurm cluster (Debian's slurmctld, slurmd and munge) inside a
-test's temporary directory (DESIGN.md section 5): its own munge key and
+test's temporary directory (docs/design.md, "Platform notes"): its own munge key and
 socket, state, spool and log folders, free ports; jobs run as root. stop()
 cancels every job and stops every daemon it started."""
 import os

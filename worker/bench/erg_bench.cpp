@@ -1,4 +1,4 @@
-// erg-bench: the benchmark scenes of [N24] Table 1 (DESIGN.md section 7).
+// erg-bench: the benchmark scenes of [N24] Table 1 (docs/design.md, "Benchmarks").
 //
 //   erg-bench --scene A|B --size 512|1024|2048|4096 [--steps N] [--warmup W]
 //             [--threads T] [--backend auto|cpu|cuda] [--iterations I] [--json]

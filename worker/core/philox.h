@@ -1,7 +1,8 @@
 // Counter-based random numbers: Philox4x32-10 (Salmon et al., SC 2011).
 // A draw depends only on (seed, step, global cell index, event), never on the
 // order cells are visited, so stochastic transport gives the same result on
-// every thread count, tiling, rank count and backend (DESIGN.md section 3).
+// every thread count, tiling, rank count and backend (docs/design.md,
+// "Exactness").
 #pragma once
 
 #include <cstdint>

@@ -2,7 +2,7 @@
 // counts of 2^-32 m (about 0.23 nm). Every transfer subtracts from the donor
 // exactly what it adds to the receiver, and integer sums do not depend on
 // order, so the total mass is conserved to the last unit on any thread count,
-// tiling or backend (shared/DESIGN.md section 3). Geometry and wind use float
+// tiling or backend (docs/design.md, "Exactness"). Geometry and wind use float
 // metres derived from these integers; outputs are float32 metres.
 //
 // Range: +-2^63 units = +-2.1e9 m, far beyond any terrain. Domain totals use

@@ -392,7 +392,7 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
   else
     check_wind(spec.wind(), "wind", out);
 
-  // The hop is bounded by the saltation halo (DESIGN.md section 4).
+  // The hop is bounded by the saltation halo (docs/design.md, "Tiling").
   constexpr double kMaxHopCells = 16;
   if (m.max_hop_m() > kMaxHopCells * l)
     out.push_back("model.max_hop_m = " + num(m.max_hop_m()) + " m is " + num(m.max_hop_m() / l) +

@@ -26,7 +26,8 @@ struct CoarseGrid {
 
 // How a step's avalanching iterations are grouped into rounds. A round of R
 // iterations starts from layers whose ghosts are filled 2R + 1 cells wide
-// and needs no exchange inside (ghost-zone expansion, DESIGN.md section 4);
+// and needs no exchange inside (ghost-zone expansion, docs/design.md
+// "Tiling");
 // a new round refills the ghosts. Execution only: every grouping gives the
 // same results, bit for bit (tests/sim/test_exactness.cpp).
 struct AvalancheRounds {
@@ -82,7 +83,7 @@ struct Model {
   // instead of only where something can change (tests compare the two).
   bool avalanche_everywhere = false;
 
-  // Ghost cells each stage reads (DESIGN.md section 4).
+  // Ghost cells each stage reads (docs/design.md, "Tiling").
   // (The echo-dune search reads the same heights, nearest neighbour.)
   int halo_shadow() const { return std::max(shadow.steps, echo.on ? echo.steps : 0) + 2; }
   int halo_saltation() const {  // hop reach + bilinear footprint

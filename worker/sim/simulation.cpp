@@ -159,7 +159,7 @@ void Simulation::apply_events(std::int64_t step) {
   }
 }
 
-// The step pipeline ([P19] Fig. 3, [N24] 3.2, DESIGN.md section 2).
+// The step pipeline ([P19] Fig. 3, [N24] 3.2, docs/design.md "The step pipeline").
 void Simulation::step() {
   auto t = Clock::now();
   auto lap = [&](Stage s) {

@@ -6,7 +6,7 @@
 // and moves B_A = min(B_max / (1 + B_max / B_sum), s(i))  (eq. 11) in total,
 // to neighbour j in proportion p(i, j) = B(i, j) / B_sum, scaled by k_c.
 //
-// Exactness (DESIGN.md section 3): the iteration is two gather passes over
+// Exactness (docs/design.md, "Exactness"): the iteration is two gather passes over
 // double-buffered fields, never in place. Pass 1: each donor i stores
 // f(i) = k_c B_A / B_sum and the integer total it sends,
 // out(i) = sum_j floor(f(i) B(i, j)). Pass 2: each receiver j recomputes

@@ -8,7 +8,7 @@
 // same arguments in the same order, so both get the same integer count: a
 // gather with no atomics, exact to the unit. The 1/8 is taken in integers on
 // the donor's sand, so 8 transfers never exceed it (the reference code's
-// flaw, DESIGN.md section 6).
+// flaw, docs/design.md "Defects avoided").
 #pragma once
 
 #include "core/hd.h"

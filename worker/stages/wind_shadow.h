@@ -13,13 +13,12 @@
 
 namespace erg::wind_shadow {
 
-// Bilinear sample of a padded field. `base` points at local cell (0, 0);
-// (px, py) are local cell coordinates within the halo.
 // Bilinear sample of a padded field at local cell (x, y) shifted by
 // (dx, dy) cells. The shift is split into whole cells and a fraction on its
 // own, never added to the cell's coordinates in floating point: the weights
 // then depend only on the shift, not on where the tile starts, so every
-// tiling computes the same sample (tiling invariance, DESIGN.md section 3).
+// tiling computes the same sample (tiling invariance, docs/design.md
+// "Exactness").
 // `base` points at local cell (0, 0).
 ERG_HD float bilinear(const float* base, int pitch, int x, int y, float dx, float dy) {
   const float fx = floorf(dx), fy = floorf(dy);

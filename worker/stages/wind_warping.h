@@ -14,7 +14,7 @@
 // wave numbers, right on non-square domains), differentiated spectrally, and
 // the two gradient fields are bilinearly interpolated back to cell centres.
 // The coarse grid depends only on the domain, never on the tiling, so every
-// tile sees the same smoothed field (DESIGN.md section 4).
+// tile sees the same smoothed field (docs/design.md, "Tiling").
 #pragma once
 
 #include "core/hd.h"

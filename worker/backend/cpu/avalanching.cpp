@@ -5,16 +5,17 @@
 // same shares, so they agree to the unit), then the changed heights are
 // recomputed. Heights are read only from the previous iteration.
 //
-// Ghost-zone expansion (DESIGN.md section 4): iterations run in rounds of R;
+// Ghost-zone expansion (docs/design.md, "Tiling"): iterations run in rounds of R;
 // a round starts from layers whose ghosts are filled 2R + 1 cells wide, and
 // its j-th iteration runs on the tile grown by 2(R - j) cells, so after R
 // iterations the owned cells are exact, with no exchange in between. Ghost
 // cells are recomputed exactly as their owners compute them (same inputs,
-// same functions). With several tiles a round is kTiledAvalancheRound
-// iterations (sim/model.h): the first round's ghosts come with the exchange
-// before reptation, and at every later round boundary the tiles first agree
-// (one logical or) whether any of them still has something to move, so a
-// settled terrain (most steps, after the first few) costs no refill at all.
+// same functions). With several tiles the rounds are kTiledRounds
+// (sim/model.h: 4 iterations, then the rest in one): the first round's ghosts
+// come with the exchange before reptation, and at a later round boundary the
+// tiles first agree (one logical or) whether any of them still has something
+// to move, so a settled terrain (most steps, after the first few) costs no
+// refill at all.
 // One tile refills its ghosts, a local copy, before every iteration (R = 1).
 //
 // Work is tracked in segments of 64 cells of a row. After the first

@@ -1,6 +1,6 @@
 // The CPU backend: OpenMP threads over rows of padded fields. Every stage is
 // a gather or an integer scatter, so the result does not depend on the thread
-// count (DESIGN.md section 3); inner loops are written to vectorise.
+// count (docs/design.md, "Exactness"); inner loops are written to vectorise.
 #pragma once
 
 #include <fftw3.h>

@@ -4,7 +4,7 @@
 // device memory, fills and folds halos, launches kernels and runs the cuFFT
 // plans of the wind-warping smoothing. Scatters use 64-bit integer atomics
 // (exact and order-independent); reductions are integer sums, so results do
-// not depend on the launch configuration (DESIGN.md section 3).
+// not depend on the launch configuration (docs/design.md, "Exactness").
 //
 // Included only by the .cu files of this folder (it has device code).
 #pragma once
@@ -177,7 +177,7 @@ ERG_HD double centre_y(const TileGeom& g, int y) {
 inline constexpr units_t kUnlimited = std::numeric_limits<units_t>::max() / 4;
 
 // ---- periodic halos (cuda_backend.cu) ---------------------------------------
-// Same results as cpu::fill_halo_periodic / cpu::fold_halo_periodic: every
+// Same results as dist::fill_periodic / dist::sum_periodic (dist/exchange.h): every
 // ghost within min(width, halo) takes its owner's value; the fold adds every
 // ghost into its owner (integer atomics) and zeroes the ghost.
 template <class T>
