@@ -1,6 +1,7 @@
 // Local runs: `erg run` starts erg-worker on this machine (under mpirun, or
-// $ERG_MPIRUN, with --ranks) and draws a progress bar from the JSON-lines
-// events rank 0 writes to its stdout; `erg check` validates a job.
+// $ERG_MPIRUN, with --ranks) and draws a progress bar from the events
+// (erg.v1.WorkerEvent, one JSON line each) rank 0 writes to its stdout;
+// `erg check` validates a job.
 #include <fcntl.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -19,9 +20,9 @@
 
 #include "commands.h"
 #include "job/map_file.h"
-#include "job/progress_line.h"
 #include "job/run_flags.h"
 #include "job/spec.h"
+#include "job/worker_event.h"
 #include "progress_bar.h"
 
 namespace erg::client {
@@ -44,6 +45,54 @@ namespace {
 pid_t g_child = -1;
 extern "C" void forward_signal(int sig) {
   if (g_child > 0) ::kill(g_child, sig);
+}
+
+// What `erg run` shows of one worker event (proto/erg/v1/worker.proto).
+void show_event(const erg::v1::WorkerEvent& ev, ProgressBar& bar, const std::string& out_dir) {
+  using Kind = erg::v1::WorkerEvent::KindCase;
+  switch (ev.kind_case()) {
+    case Kind::kProgress: {
+      const auto& p = ev.progress();
+      bar.update(ev.step(), p.steps(), p.steps_per_s(), p.eta_s());
+      break;
+    }
+    case Kind::kSnapshot:
+      bar.snapshot();
+      break;
+    case Kind::kStart: {
+      const auto& s = ev.start();
+      std::cerr << "erg: " << s.nx() << " x " << s.ny() << " cells on the " << s.backend()
+                << " backend, " << s.ranks() << " rank(s) as " << s.tiles_x() << "x" << s.tiles_y()
+                << " tiles, steps " << ev.step() << " -> " << s.steps() << ", output in " << out_dir
+                << "\n";
+      break;
+    }
+    case Kind::kDone: {
+      const auto& d = ev.done();
+      bar.finish();
+      if (d.halo_messages_per_step() > 0)
+        std::cerr << "erg: halo exchange: " << d.halo_messages_per_step() << " messages, "
+                  << d.halo_bytes_per_step() << " bytes per step (the most of any rank)\n";
+      if (d.peak_rss_bytes_per_cell() > 0) {
+        char line[160];
+        std::snprintf(line, sizeof line,
+                      "erg: memory: %.0f bytes per cell (peak resident, all ranks: %.2f GiB)\n",
+                      d.peak_rss_bytes_per_cell(),
+                      static_cast<double>(d.peak_rss_bytes()) / 1073741824.0);
+        std::cerr << line;
+      }
+      std::cerr << "erg: done at step " << ev.step() << "; exact sand total "
+                << d.totals().sand_units_total() << " units on the ground + "
+                << d.totals().airborne_units_total() << " airborne\n";
+      break;
+    }
+    case Kind::kFailed:
+    case Kind::kStopped:
+      bar.finish();
+      break;
+    default:
+      break;
+  }
 }
 
 }  // namespace
@@ -132,38 +181,17 @@ int cmd_run(const std::vector<std::string>& args) {
     pending.append(buf, static_cast<size_t>(n));
     size_t nl;
     while ((nl = pending.find('\n')) != std::string::npos) {
-      const auto ev = erg::job::parse_progress_line(pending.substr(0, nl));
+      const std::string line = pending.substr(0, nl);
       pending.erase(0, nl + 1);
-      const std::string& kind = ev.count("event") ? ev.at("event") : "";
-      auto num = [&](const char* k) { return ev.count(k) ? std::atof(ev.at(k).c_str()) : 0.0; };
-      if (kind == "progress") {
-        bar.update(static_cast<long long>(num("step")), static_cast<long long>(num("steps")),
-                   num("steps_per_s"), num("eta_s"));
-      } else if (kind == "snapshot") {
-        bar.snapshot();
-      } else if (kind == "start") {
-        std::cerr << "erg: " << ev.at("nx") << " x " << ev.at("ny") << " cells on the "
-                  << ev.at("backend") << " backend, " << ev.at("ranks") << " rank(s) as "
-                  << ev.at("tiles") << " tiles, steps " << ev.at("step") << " -> " << ev.at("steps")
-                  << ", output in " << out_dir << "\n";
-      } else if (kind == "done") {
-        bar.finish();
-        if (ev.count("halo_messages_per_step") && num("halo_messages_per_step") > 0)
-          std::cerr << "erg: halo exchange: " << ev.at("halo_messages_per_step") << " messages, "
-                    << ev.at("halo_bytes_per_step") << " bytes per step (the most of any rank)\n";
-        if (ev.count("peak_rss_bytes_per_cell")) {
-          char line[160];
-          std::snprintf(line, sizeof line,
-                        "erg: memory: %.0f bytes per cell (peak resident, all ranks: %.2f GiB)\n",
-                        num("peak_rss_bytes_per_cell"), num("peak_rss_bytes") / 1073741824.0);
-          std::cerr << line;
-        }
-        std::cerr << "erg: done at step " << ev.at("step") << "; exact sand total "
-                  << ev.at("sand_units_total") << " units on the ground + "
-                  << ev.at("airborne_units_total") << " airborne\n";
-      } else if (kind == "failed" || kind == "stopped") {
-        bar.finish();
+      if (line.empty() || line[0] != '{') continue;  // not an event (mpirun's notes)
+      std::string error;
+      const auto ev = erg::job::parse_worker_event(line, &error);
+      if (!ev) {
+        std::cerr << "erg: skipping a worker line that is not an erg.v1.WorkerEvent (" << error
+                  << ")\n";
+        continue;
       }
+      show_event(*ev, bar, out_dir);
     }
   }
   ::close(fds[0]);

@@ -1,7 +1,8 @@
-// erg-worker: runs one job, as one MPI rank of P (DESIGN.md section 1):
+// erg-worker: runs one job, as one MPI rank of P (docs/design.md, "Processes"):
 //   mpirun -n P erg-worker JOB.json --out DIR [--tiles PXxPY] [...]
 // or alone (one rank, one tile). Started by `erg run` (which draws the
-// progress bar from the JSON lines rank 0 writes to --progress-fd) or directly.
+// progress bar from the erg.v1.WorkerEvent lines rank 0 writes to
+// --progress-fd) or directly.
 #include <mpi.h>
 
 #include <cstdlib>

@@ -64,8 +64,10 @@ def run_scene(worker, job_path, out, threads, reuse, index, count):
                 ev = json.loads(line)
             except ValueError:
                 continue
-            if ev.get("event") == "progress":
-                step, steps = int(ev.get("step", 0)), int(ev.get("steps", 1))
+            # erg.v1.WorkerEvent (proto/erg/v1/worker.proto) in protobuf
+            # JSON: int64 fields are strings.
+            if isinstance(ev, dict) and "progress" in ev:
+                step, steps = int(ev.get("step", 0)), int(ev["progress"].get("steps", 1))
                 decile = (10 * step) // max(steps, 1)
                 if decile != last:
                     last = decile

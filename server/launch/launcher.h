@@ -1,10 +1,13 @@
-// How ergd starts and stops workers. The local launcher (this machine,
-// mpirun or erg-worker directly) is the default; issue 5 adds Slurm.
+// How ergd starts and stops workers: the local launcher (this machine,
+// mpirun or erg-worker directly, the default) and Slurm (sbatch).
 #pragma once
 
 #include <cstdint>
 #include <functional>
+#include <iostream>
 #include <string>
+
+#include "job/worker_event.h"
 
 namespace erg::server {
 
@@ -24,14 +27,27 @@ struct LaunchRequest {
 };
 
 struct LaunchCallbacks {
-  // One progress-event line of the worker (worker/job/progress_line.h), and
-  // where the next line starts in the worker's progress file (0: a pipe).
-  std::function<void(const std::string& line, std::int64_t offset)> on_line;
+  // One event of the worker (proto/erg/v1/worker.proto), and where the line
+  // after it starts in the worker's progress file (0: a pipe).
+  std::function<void(const erg::v1::WorkerEvent& event, std::int64_t offset)> on_event;
   // The worker ended: its exit code (128 + signal when killed).
   std::function<void(int exit_code)> on_exit;
   // The scheduler's state of the job changed (Slurm: PENDING, RUNNING, ...).
   std::function<void(const std::string& state)> on_state;
 };
+
+// One line the worker wrote on its progress descriptor: parsed as a
+// WorkerEvent and passed on. Lines that are not JSON objects (an MPI
+// launcher's own notes) are skipped; a broken event is logged and skipped.
+inline void deliver_line(const LaunchCallbacks& cb, const std::string& line, std::int64_t offset) {
+  if (line.empty() || line[0] != '{') return;
+  std::string error;
+  if (const auto event = job::parse_worker_event(line, &error))
+    cb.on_event(*event, offset);
+  else
+    std::cerr << "ergd: skipping a worker line that is not an erg.v1.WorkerEvent (" << error
+              << "): " << line.substr(0, 200) << "\n";
+}
 
 class Launcher {
  public:

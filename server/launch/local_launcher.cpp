@@ -100,7 +100,7 @@ std::string LocalLauncher::start(const LaunchRequest& req, LaunchCallbacks cb) {
       while ((nl = pending.find('\n')) != std::string::npos) {
         const std::string line = pending.substr(0, nl);
         pending.erase(0, nl + 1);
-        if (!line.empty() && line[0] == '{') cb.on_line(line, 0);
+        deliver_line(cb, line, 0);
       }
     }
     ::close(rd);

@@ -162,7 +162,7 @@ void SlurmLauncher::monitor(std::string id, LaunchRequest req, std::int64_t offs
     while (std::getline(f, line)) {
       if (f.eof()) break;  // a line still being written: read it next time
       offset += static_cast<std::int64_t>(line.size()) + 1;
-      if (!line.empty() && line[0] == '{') cb.on_line(line, offset);
+      deliver_line(cb, line, offset);
     }
   };
   while (!detaching_) {

@@ -13,7 +13,6 @@
 #include <sstream>
 
 #include "auth/request_checks.h"
-#include "job/progress_line.h"
 #include "job/spec.h"
 #include "sim/tiling.h"
 
@@ -67,16 +66,6 @@ std::int64_t dir_bytes(const fs::path& dir) {
     if (it->is_regular_file(e2)) total += static_cast<std::int64_t>(it->file_size(e2));
   }
   return total;
-}
-
-double num(const std::map<std::string, std::string>& ev, const char* k) {
-  auto it = ev.find(k);
-  return it == ev.end() ? 0.0 : std::atof(it->second.c_str());
-}
-
-std::string str(const std::map<std::string, std::string>& ev, const char* k) {
-  auto it = ev.find(k);
-  return it == ev.end() ? std::string() : it->second;
 }
 
 }  // namespace
@@ -385,9 +374,10 @@ LaunchRequest JobManager::request_for(const Job& job) const {
 }
 
 LaunchCallbacks JobManager::callbacks(const std::string& id) {
-  return {[this, id](const std::string& line, std::int64_t offset) { on_line(id, line, offset); },
-          [this, id](int code) { on_exit(id, code); },
-          [this, id](const std::string& state) { on_state(id, state); }};
+  return {
+      [this, id](const erg::v1::WorkerEvent& ev, std::int64_t offset) { on_event(id, ev, offset); },
+      [this, id](int code) { on_exit(id, code); },
+      [this, id](const std::string& state) { on_state(id, state); }};
 }
 
 void JobManager::launch_locked(Job job) {
@@ -451,9 +441,9 @@ void JobManager::on_state(const std::string& id, const std::string& state) {
     store_.update(job);
 }
 
-void JobManager::on_line(const std::string& id, const std::string& line, std::int64_t offset) {
-  const auto ev = job::parse_progress_line(line);
-  const std::string kind = str(ev, "event");
+void JobManager::on_event(const std::string& id, const erg::v1::WorkerEvent& ev,
+                          std::int64_t offset) {
+  using Kind = erg::v1::WorkerEvent::KindCase;
   std::lock_guard lock(mu_);
   auto it = running_.find(id);
   if (it == running_.end()) return;
@@ -461,68 +451,83 @@ void JobManager::on_line(const std::string& id, const std::string& line, std::in
   if (offset > 0) r.job.set_launcher_offset(offset);  // saved with the next update
   auto& p = *r.job.mutable_progress();
   const double now = mono_s();
-  if (kind == "start") {
-    // The worker runs (a batch job may start before squeue says so).
-    if (r.job.state() == erg::v1::QUEUED) set_state_locked(r.job, erg::v1::RUNNING);
-    p.set_step(static_cast<std::int64_t>(num(ev, "step")));
-    p.set_total_steps(static_cast<std::int64_t>(num(ev, "steps")));
-  } else if (kind == "progress" || kind == "done") {
-    p.set_step(static_cast<std::int64_t>(num(ev, "step")));
-    if (kind == "progress") {
-      p.set_total_steps(static_cast<std::int64_t>(num(ev, "steps")));
-      p.set_steps_per_s(num(ev, "steps_per_s"));
-      p.set_eta_s(num(ev, "eta_s"));
-      p.set_time_days(num(ev, "time_days"));
-      metrics_.set_rate(id, r.job.tenant(), p.steps_per_s());
-    } else {
-      p.set_eta_s(0);
+  switch (ev.kind_case()) {
+    case Kind::kStart:
+      // The worker runs (a batch job may start before squeue says so).
+      if (r.job.state() == erg::v1::QUEUED) set_state_locked(r.job, erg::v1::RUNNING);
+      p.set_step(ev.step());
+      p.set_total_steps(ev.start().steps());
+      break;
+    case Kind::kProgress:
+    case Kind::kDone: {
+      const bool done = ev.kind_case() == Kind::kDone;
+      p.set_step(ev.step());
+      const erg::v1::WorkerEvent::Totals& totals =
+          done ? ev.done().totals() : ev.progress().totals();
+      if (!done) {
+        const auto& q = ev.progress();
+        p.set_total_steps(q.steps());
+        p.set_steps_per_s(q.steps_per_s());
+        p.set_eta_s(q.eta_s());
+        p.set_time_days(q.time_days());
+        metrics_.set_rate(id, r.job.tenant(), p.steps_per_s());
+      } else {
+        p.set_eta_s(0);
+      }
+      if (!totals.sand_units_total().empty()) p.set_sand_units_total(totals.sand_units_total());
+      if (!totals.airborne_units_total().empty())
+        p.set_airborne_units_total(totals.airborne_units_total());
+      if (done || now - r.last_saved >= 1.0) {
+        r.last_saved = now;
+        store_.update(r.job);
+      }
+      if (done || now - r.last_progress_event >= 1.0) {
+        r.last_progress_event = now;
+        JobEvent e;
+        *e.mutable_progress() = p;
+        event_locked(r.job, e);
+      }
+      break;
     }
-    if (ev.count("sand_units_total")) p.set_sand_units_total(str(ev, "sand_units_total"));
-    if (ev.count("airborne_units_total"))
-      p.set_airborne_units_total(str(ev, "airborne_units_total"));
-    if (kind == "done" || now - r.last_saved >= 1.0) {
-      r.last_saved = now;
+    case Kind::kSnapshot: {
+      const std::int64_t step = ev.step();
+      auto* steps = r.job.mutable_snapshot_steps();
+      if (std::find(steps->begin(), steps->end(), step) == steps->end()) steps->Add(step);
+      p.set_latest_snapshot_step(step);
       store_.update(r.job);
-    }
-    if (kind == "done" || now - r.last_progress_event >= 1.0) {
-      r.last_progress_event = now;
       JobEvent e;
-      *e.mutable_progress() = p;
+      e.set_snapshot_step(step);
       event_locked(r.job, e);
+      break;
     }
-  } else if (kind == "snapshot") {
-    const auto step = static_cast<std::int64_t>(num(ev, "step"));
-    auto* steps = r.job.mutable_snapshot_steps();
-    if (std::find(steps->begin(), steps->end(), step) == steps->end()) steps->Add(step);
-    p.set_latest_snapshot_step(step);
-    store_.update(r.job);
-    JobEvent e;
-    e.set_snapshot_step(step);
-    event_locked(r.job, e);
-  } else if (kind == "steered") {
-    erg::v1::Event applied;
-    google::protobuf::util::JsonParseOptions opt;
-    if (!google::protobuf::util::JsonStringToMessage(str(ev, "event_json"), &applied, opt).ok())
-      return;
-    applied.set_step(static_cast<std::int64_t>(num(ev, "step")));
-    *r.job.mutable_spec()->add_events() = applied;  // the recorded spec
-    r.steered[str(ev, "file")] = applied;
-    store_.update(r.job);
-    JobEvent e;
-    *e.mutable_steered() = applied;
-    event_locked(r.job, e);
-    cv_.notify_all();
-  } else if (kind == "steer_rejected") {
-    r.steer_rejected[str(ev, "file")] = str(ev, "reason");
-    cv_.notify_all();
-  } else if (kind == "stopped") {
-    // Stopped on a signal after a checkpoint: where the job really is.
-    r.stopped_by_signal = true;
-    if (num(ev, "step") >= 0) p.set_step(static_cast<std::int64_t>(num(ev, "step")));
-    p.set_steps_per_s(0);
-    store_.update(r.job);
-  } else if (kind == "failed") {
-    r.failure = str(ev, "reason");
+    case Kind::kSteered: {
+      erg::v1::Event applied = ev.steered().event();
+      applied.set_step(ev.step());
+      *r.job.mutable_spec()->add_events() = applied;  // the recorded spec
+      r.steered[ev.steered().file()] = applied;
+      store_.update(r.job);
+      JobEvent e;
+      *e.mutable_steered() = applied;
+      event_locked(r.job, e);
+      cv_.notify_all();
+      break;
+    }
+    case Kind::kSteerRejected:
+      r.steer_rejected[ev.steer_rejected().file()] = ev.steer_rejected().reason();
+      cv_.notify_all();
+      break;
+    case Kind::kStopped:
+      // Stopped on a signal after a checkpoint: where the job really is.
+      r.stopped_by_signal = true;
+      if (ev.step() >= 0) p.set_step(ev.step());
+      p.set_steps_per_s(0);
+      store_.update(r.job);
+      break;
+    case Kind::kFailed:
+      r.failure = ev.failed().reason();
+      break;
+    case Kind::KIND_NOT_SET:  // an event kind newer than this ergd
+      break;
   }
 }
 

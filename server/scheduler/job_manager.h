@@ -99,7 +99,7 @@ class JobManager {
   void scheduler_loop();
   void start_next_locked();
   void launch_locked(erg::v1::Job job);
-  void on_line(const std::string& id, const std::string& line, std::int64_t offset);
+  void on_event(const std::string& id, const erg::v1::WorkerEvent& ev, std::int64_t offset);
   void on_state(const std::string& id, const std::string& state);
   LaunchCallbacks callbacks(const std::string& id);
   LaunchRequest request_for(const erg::v1::Job& job) const;

@@ -23,6 +23,7 @@
 #include "../common/temp_dir.h"
 #include "io/io.h"
 #include "job/spec.h"
+#include "job/worker_event.h"
 #include "stages/events.h"
 
 namespace fs = std::filesystem;
@@ -117,17 +118,22 @@ long long brush_units(double x, double y, double r, double falloff, double h) {
   return sum;
 }
 
-// The "steered" (or "steer_rejected") events of a run's output, in order.
-std::vector<std::string> lines_with(const std::string& output, const std::string& kind) {
-  std::vector<std::string> out;
+using Kind = erg::v1::WorkerEvent::KindCase;
+
+// The events of one kind in a run's output (erg.v1.WorkerEvent lines), in
+// order.
+std::vector<erg::v1::WorkerEvent> events_of(const std::string& output, Kind kind) {
+  std::vector<erg::v1::WorkerEvent> out;
   std::istringstream in(output);
   for (std::string line; std::getline(in, line);)
-    if (line.find("{\"event\":\"" + kind + "\"") == 0) out.push_back(line);
+    if (const auto ev = erg::job::parse_worker_event(line); ev && ev->kind_case() == kind)
+      out.push_back(*ev);
   return out;
 }
-long long step_of(const std::string& line) {
-  const size_t k = line.find("\"step\":");
-  return k == std::string::npos ? -1 : std::stoll(line.substr(k + 7));
+// Whether an output line is the event of the snapshot at `step`.
+bool is_snapshot(const std::string& line, long long step) {
+  const auto ev = erg::job::parse_worker_event(line);
+  return ev && ev->has_snapshot() && ev->step() == step;
 }
 
 long long total_sand(const std::string& snapshot) {
@@ -170,7 +176,7 @@ TEST(Steering, AppliedEventsAreRecordedAndReplayBitwise) {
   r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "steered") + " --steer-dir " + steer +
               " --progress-fd 1 --threads 1",
           [&](const std::string& line, pid_t pid) {
-            if (line.find("\"event\":\"snapshot\",\"step\":20,") == std::string::npos) return;
+            if (!is_snapshot(line, 20)) return;
             ::kill(pid, SIGSTOP);
             drop(steer, "c.json", kBrushC);
             ::kill(pid, SIGCONT);
@@ -180,21 +186,21 @@ TEST(Steering, AppliedEventsAreRecordedAndReplayBitwise) {
     EXPECT_TRUE(fs::exists(steer + "/" + name + ".applied")) << name << "\n" << r.output;
     EXPECT_FALSE(fs::exists(steer + "/" + name + ".json")) << name;
   }
-  const auto steered = lines_with(r.output, "steered");
+  const auto steered = events_of(r.output, Kind::kSteered);
   ASSERT_EQ(steered.size(), 3u) << r.output;
-  EXPECT_EQ(step_of(steered[0]), 0);
-  EXPECT_NE(steered[0].find("\"file\":\"a.json\",\"event_json\":{\"step\":\"0\",\"sand\":{"),
-            std::string::npos)
-      << steered[0];
-  EXPECT_EQ(step_of(steered[1]), 0);
-  EXPECT_NE(steered[1].find("\"file\":\"b.json\""), std::string::npos) << steered[1];
-  EXPECT_NE(steered[1].find("\"wind\":{\"constant\":{\"speed_mps\":7,\"direction_deg\":100}}"),
-            std::string::npos)
-      << steered[1];
-  const long long s = step_of(steered[2]);
-  EXPECT_GE(s, 20) << steered[2];
-  EXPECT_LT(s, 60) << steered[2];
-  EXPECT_NE(steered[2].find("\"file\":\"c.json\""), std::string::npos) << steered[2];
+  EXPECT_EQ(steered[0].step(), 0);
+  EXPECT_EQ(steered[0].steered().file(), "a.json");
+  EXPECT_EQ(steered[0].steered().event().step(), 0);
+  EXPECT_TRUE(steered[0].steered().event().has_sand()) << steered[0].DebugString();
+  EXPECT_EQ(steered[1].step(), 0);
+  EXPECT_EQ(steered[1].steered().file(), "b.json");
+  EXPECT_EQ(steered[1].steered().event().wind().constant().speed_mps(), 7)
+      << steered[1].DebugString();
+  EXPECT_EQ(steered[1].steered().event().wind().constant().direction_deg(), 100);
+  const long long s = steered[2].step();
+  EXPECT_GE(s, 20) << steered[2].DebugString();
+  EXPECT_LT(s, 60) << steered[2].DebugString();
+  EXPECT_EQ(steered[2].steered().file(), "c.json");
 
   // The recorded job: the job's own event, then the three at their steps.
   const erg::v1::JobSpec spec = recorded_job(t / "steered");
@@ -242,15 +248,17 @@ TEST(Steering, BadEventsAreRejectedAndTheRunGoesOn) {
   EXPECT_TRUE(fs::exists(steer + "/typo.rejected"));
   EXPECT_TRUE(fs::exists(steer + "/later.json.tmp"));
   EXPECT_TRUE(fs::exists(steer + "/notes.txt"));
-  EXPECT_TRUE(lines_with(r.output, "steered").empty()) << r.output;
-  const auto rejected = lines_with(r.output, "steer_rejected");
+  EXPECT_TRUE(events_of(r.output, Kind::kSteered).empty()) << r.output;
+  const auto rejected = events_of(r.output, Kind::kSteerRejected);
   ASSERT_EQ(rejected.size(), 2u) << r.output;
-  EXPECT_NE(rejected[0].find("\"file\":\"bad.json\""), std::string::npos) << rejected[0];
-  EXPECT_NE(rejected[0].find("event.vegetation.density = 5 is out of range; allowed [0, 1]"),
+  EXPECT_EQ(rejected[0].steer_rejected().file(), "bad.json");
+  EXPECT_NE(rejected[0].steer_rejected().reason().find(
+                "event.vegetation.density = 5 is out of range; allowed [0, 1]"),
             std::string::npos)
-      << rejected[0];
-  EXPECT_NE(rejected[1].find("\"file\":\"typo.json\""), std::string::npos) << rejected[1];
-  EXPECT_NE(rejected[1].find("hieght"), std::string::npos) << rejected[1];
+      << rejected[0].DebugString();
+  EXPECT_EQ(rejected[1].steer_rejected().file(), "typo.json");
+  EXPECT_NE(rejected[1].steer_rejected().reason().find("hieght"), std::string::npos)
+      << rejected[1].DebugString();
   EXPECT_EQ(recorded_job(t / "out").events_size(), 1);
   // Nothing changed: the same bits as a run without --steer-dir.
   r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "plain") + " --quiet --threads 1");
@@ -275,7 +283,7 @@ TEST(Steering, WindPrimitivesAreAddedAndRemoved) {
   r = run(kWorker + " " + (t / "job.json") + " --out " + (t / "steered") + " --steer-dir " + steer +
               " --progress-fd 1 --threads 1",
           [&](const std::string& line, pid_t pid) {
-            if (line.find("\"event\":\"snapshot\",\"step\":20,") == std::string::npos) return;
+            if (!is_snapshot(line, 20)) return;
             ::kill(pid, SIGSTOP);
             drop(steer, "c.json", R"({"remove_wind_primitive": "eddy"})");
             ::kill(pid, SIGCONT);
@@ -284,11 +292,12 @@ TEST(Steering, WindPrimitivesAreAddedAndRemoved) {
   EXPECT_TRUE(fs::exists(steer + "/a.applied")) << r.output;
   EXPECT_TRUE(fs::exists(steer + "/b.rejected")) << r.output;
   EXPECT_TRUE(fs::exists(steer + "/c.applied")) << r.output;
-  const auto rejected = lines_with(r.output, "steer_rejected");
+  const auto rejected = events_of(r.output, Kind::kSteerRejected);
   ASSERT_EQ(rejected.size(), 1u) << r.output;
-  EXPECT_NE(rejected[0].find("event.remove_wind_primitive = \\\"gust\\\" names no wind primitive"),
+  EXPECT_NE(rejected[0].steer_rejected().reason().find(
+                "event.remove_wind_primitive = \"gust\" names no wind primitive"),
             std::string::npos)
-      << rejected[0];
+      << rejected[0].DebugString();
   const erg::v1::JobSpec spec = recorded_job(t / "steered");
   ASSERT_EQ(spec.events_size(), 3);
   EXPECT_EQ(spec.events(1).step(), 0);
@@ -321,9 +330,9 @@ TEST(Steering, ResumeFromAnOlderCheckpointReappliesRecordedEvents) {
   r = run(kWorker + " --resume " + out + " --steps 60 --steer-dir " + steer +
           " --progress-fd 1 --threads 1");
   ASSERT_EQ(r.code, 0) << r.output;
-  const auto steered = lines_with(r.output, "steered");
+  const auto steered = events_of(r.output, Kind::kSteered);
   ASSERT_EQ(steered.size(), 1u) << r.output;
-  EXPECT_EQ(step_of(steered[0]), 30);
+  EXPECT_EQ(steered[0].step(), 30);
   // The checkpoint at 20 lacks the event; job.json has it at step 30.
   fs::copy_file(out + "/job.json", redo + "/job.json");
   r = run(kWorker + " --resume " + redo + " --steps 60 --quiet --threads 1");
@@ -347,17 +356,19 @@ TEST(Steering, TwoRanksGiveTheSameBitsAsOne) {
   Result r = run(kMpirun + " -n 2 " + kWorker + " " + (t / "job.json") + " --out " + (t / "two") +
                      " --steer-dir " + steer + " --progress-fd 1 --threads 1",
                  [&](const std::string& line, pid_t) {
-                   if (dropped || line.find("\"event\":\"steered\"") == std::string::npos) return;
+                   if (dropped) return;
+                   const auto ev = erg::job::parse_worker_event(line);
+                   if (!ev || !ev->has_steered()) return;
                    drop(steer, "c.json", kBrushC);  // while it runs
                    dropped = true;
                  });
   ASSERT_EQ(r.code, 0) << r.output;
-  const auto steered = lines_with(r.output, "steered");
+  const auto steered = events_of(r.output, Kind::kSteered);
   ASSERT_EQ(steered.size(), 3u) << "the run ended before the file dropped while it ran\n"
                                 << r.output;
-  EXPECT_EQ(step_of(steered[0]), 0);
-  EXPECT_EQ(step_of(steered[1]), 0);
-  EXPECT_GT(step_of(steered[2]), 0);
+  EXPECT_EQ(steered[0].step(), 0);
+  EXPECT_EQ(steered[1].step(), 0);
+  EXPECT_GT(steered[2].step(), 0);
   EXPECT_EQ(recorded_job(t / "two").events_size(), 4);
   // One rank running the recorded job.
   r = run(kWorker + " " + (t / "two/job.json") + " --out " + (t / "one") + " --quiet --threads 1");

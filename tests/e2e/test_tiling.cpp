@@ -23,6 +23,7 @@
 #include "../common/same_snapshots.h"
 #include "../common/temp_dir.h"
 #include "io/io.h"
+#include "job/worker_event.h"
 
 namespace fs = std::filesystem;
 
@@ -284,9 +285,12 @@ TEST(Tiling, HaloMessagesDoNotGrowWithAvalancheIterations) {
     const Result r = run(worker_on(
         2, (t / (name + ".json")) + " --out " + (t / name) + " --progress-fd 1 --threads 1"));
     EXPECT_EQ(r.code, 0) << r.output;
-    const size_t k = r.output.find("\"halo_messages_per_step\":");
-    EXPECT_NE(k, std::string::npos) << r.output;
-    return k == std::string::npos ? 0.0 : std::stod(r.output.substr(k + 25));
+    std::istringstream lines(r.output);
+    for (std::string line; std::getline(lines, line);)
+      if (const auto ev = erg::job::parse_worker_event(line); ev && ev->has_done())
+        return static_cast<double>(ev->done().halo_messages_per_step());
+    ADD_FAILURE() << "no done event in\n" << r.output;
+    return 0.0;
   };
   const double few = messages(12), many = messages(48);
   EXPECT_GT(few, 0);

@@ -18,6 +18,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "server"))
 from ergd_fixture import (ALICE, ERG, Ergd, ErgdTest, S, datasets, erg_run, md,  # noqa: E402
                           spec_json)
 from slurm_cluster import SlurmCluster  # noqa: E402
+from google.protobuf import json_format  # noqa: E402
+from erg.v1 import worker_pb2 as W  # noqa: E402
 
 
 def have_slurm():
@@ -138,7 +140,8 @@ class Slurm(ErgdTest):
         self.assertEqual(done.launcher_id, j.launcher_id)  # the same Slurm job, run twice
         # Two starts in the progress file: the second at the checkpoint's step.
         with open(os.path.join(self.ergd.data, "jobs", job_id, "progress-1.jsonl")) as f:
-            starts = [json.loads(line)["step"] for line in f if '"event":"start"' in line]
+            events = [json_format.Parse(line, W.WorkerEvent()) for line in f]
+            starts = [e.step for e in events if e.HasField("start")]
         self.assertEqual(len(starts), 2, starts)
         self.assertEqual(starts[0], 0)
         self.assertGreaterEqual(starts[1], 200)

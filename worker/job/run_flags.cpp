@@ -83,7 +83,7 @@ std::string run_flags_usage() {
   return "usage: run JOB.json --out DIR [--steps N] [--snapshot-every K] [--checkpoint-every C]\n"
          "                    [--threads T] [--backend auto|cpu|cuda] [--ranks P] [--tiles PXxPY]\n"
          "       run --resume DIR [--steps N] [...]\n"
-         "erg-worker only: [--progress-fd FD] (JSON-lines events) [--quiet]\n"
+         "erg-worker only: [--progress-fd FD] (erg.v1.WorkerEvent JSON lines) [--quiet]\n"
          "                 [--steer-dir DIR] (apply DIR/*.json, one erg.v1.Event each, at the\n"
          "                 next step boundary; renamed .applied or .rejected)";
 }

@@ -17,6 +17,7 @@
 #include <stdexcept>
 
 #include "dist/decomposition.h"
+#include "job/worker_event.h"
 #include "sim/tiling.h"
 
 namespace erg {
@@ -30,31 +31,14 @@ extern "C" void on_signal(int sig) {
   g_signal.store(sig);
 }
 
-std::string json_escape(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\';
-    if (c == '\n') {
-      o += "\\n";
-      continue;
-    }
-    if (static_cast<unsigned char>(c) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", static_cast<unsigned>(c));
-      o += buf;
-      continue;
-    }
-    o += c;
-  }
-  return o;
-}
-
+// The worker's events (proto/erg/v1/worker.proto), one line each on the
+// progress descriptor; rank 0 only (the others hold fd -1).
 class Progress {
  public:
   explicit Progress(int fd) : fd_(fd) {}
-  void emit(const std::string& json) {
+  void emit(const erg::v1::WorkerEvent& event) {
     if (fd_ < 0) return;
-    const std::string line = json + "\n";
+    const std::string line = job::worker_event_line(event);
     const char* p = line.data();
     size_t left = line.size();
     while (left > 0) {
@@ -126,8 +110,11 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
                             o.sand.data(), o.vegetation.data());
     }
   }
-  progress.emit("{\"event\":\"snapshot\",\"step\":" + std::to_string(sim.step_index()) +
-                ",\"path\":\"" + json_escape(h5) + "\",\"preview\":\"" + json_escape(png) + "\"}");
+  erg::v1::WorkerEvent e;
+  e.set_step(sim.step_index());
+  e.mutable_snapshot()->set_path(job::valid_utf8(h5));
+  e.mutable_snapshot()->set_preview(job::valid_utf8(png));
+  progress.emit(e);
 }
 
 void write_checkpoint(Simulation& sim, const std::string& dir, const Context& ctx) {
@@ -155,14 +142,6 @@ struct SteerFile {
   std::string name;  // NAME.json, in the steering directory
   erg::v1::Event event;
 };
-
-std::string event_json(const erg::v1::Event& e) {
-  std::string out;
-  google::protobuf::util::JsonPrintOptions opt;
-  opt.preserve_proto_field_names = true;
-  (void)google::protobuf::util::MessageToJsonString(e, &out, opt);
-  return out;
-}
 
 // NAME.json -> NAME.applied / NAME.rejected, replacing an older one.
 void mark_steer_file(const std::string& dir, const std::string& name, const char* ext) {
@@ -249,9 +228,11 @@ std::vector<SteerFile> collect_steering(const std::string& dir, const erg::v1::J
     if (log)
       std::cerr << "erg: steering " << name << " rejected at step " << step << ": " << reason
                 << "\n";
-    progress.emit("{\"event\":\"steer_rejected\",\"step\":" + std::to_string(step) +
-                  ",\"file\":\"" + json_escape(name) + "\",\"reason\":\"" + json_escape(reason) +
-                  "\"}");
+    erg::v1::WorkerEvent ev;
+    ev.set_step(step);
+    ev.mutable_steer_rejected()->set_file(job::valid_utf8(name));
+    ev.mutable_steer_rejected()->set_reason(job::valid_utf8(reason));
+    progress.emit(ev);
   }
   return good;
 }
@@ -414,10 +395,13 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
   const auto& run = sim->spec().run();
   const std::int64_t steps = run.steps();
   const bool previews = run.previews();
-  const auto totals_json = [&]() {
+  const auto totals = [&]() {
     const Totals t = sim->totals();  // collective
-    return "\"sand_units_total\":\"" + to_decimal(t.sand) + "\",\"airborne_units_total\":\"" +
-           to_decimal(t.airborne) + "\",\"bedrock_units_total\":\"" + to_decimal(t.bedrock) + "\"";
+    erg::v1::WorkerEvent::Totals out;
+    out.set_sand_units_total(to_decimal(t.sand));
+    out.set_airborne_units_total(to_decimal(t.airborne));
+    out.set_bedrock_units_total(to_decimal(t.bedrock));
+    return out;
   };
 
   try {
@@ -428,12 +412,17 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
       if (!cfg.resume) write_atomic_text(cfg.out_dir + "/job.json", spec_json);
       if (cfg.resume && !cfg.quiet)
         std::cerr << "erg: resuming " << cfg.out_dir << " at step " << sim->step_index() << "\n";
-      progress.emit("{\"event\":\"start\",\"step\":" + std::to_string(sim->step_index()) +
-                    ",\"steps\":" + std::to_string(steps) + ",\"backend\":\"" +
-                    sim->backend().name() + "\",\"nx\":" + std::to_string(sim->model().tile.gnx) +
-                    ",\"ny\":" + std::to_string(sim->model().tile.gny) +
-                    ",\"ranks\":" + std::to_string(ctx.size) + ",\"tiles\":\"" +
-                    std::to_string(ctx.d.px) + "x" + std::to_string(ctx.d.py) + "\"}");
+      erg::v1::WorkerEvent e;
+      e.set_step(sim->step_index());
+      auto& start = *e.mutable_start();
+      start.set_steps(steps);
+      start.set_backend(sim->backend().name());
+      start.set_nx(sim->model().tile.gnx);
+      start.set_ny(sim->model().tile.gny);
+      start.set_ranks(ctx.size);
+      start.set_tiles_x(ctx.d.px);
+      start.set_tiles_y(ctx.d.py);
+      progress.emit(e);
     }
     MPI_Barrier(world);  // the directories exist before any collective write
     if (!cfg.resume) {
@@ -468,9 +457,11 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
         if (log_steering)
           std::cerr << "erg: steering " << f.name << " applied at step " << sim->step_index()
                     << "\n";
-        progress.emit("{\"event\":\"steered\",\"step\":" + std::to_string(sim->step_index()) +
-                      ",\"file\":\"" + json_escape(f.name) +
-                      "\",\"event_json\":" + event_json(f.event) + "}");
+        erg::v1::WorkerEvent e;
+        e.set_step(sim->step_index());
+        e.mutable_steered()->set_file(job::valid_utf8(f.name));
+        *e.mutable_steered()->mutable_event() = f.event;
+        progress.emit(e);
       }
       steered.clear();
     };
@@ -516,12 +507,15 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
       const double eta = static_cast<double>(steps - s) / std::max(rate, 1e-9);
       if (control & 1) {
         last_report = now;
-        const std::string totals = totals_json();
-        std::ostringstream o;
-        o << "{\"event\":\"progress\",\"step\":" << s << ",\"steps\":" << steps
-          << ",\"steps_per_s\":" << rate << ",\"eta_s\":" << eta
-          << ",\"time_days\":" << sim->time_days() << "," << totals << "}";
-        progress.emit(o.str());
+        erg::v1::WorkerEvent e;
+        e.set_step(s);
+        auto& p = *e.mutable_progress();
+        p.set_steps(steps);
+        p.set_steps_per_s(rate);
+        p.set_eta_s(eta);
+        p.set_time_days(sim->time_days());
+        *p.mutable_totals() = totals();
+        progress.emit(e);
       }
       if (ctx.root() && !cfg.quiet && cfg.progress_fd < 0 &&
           (last || std::chrono::duration<double>(now - last_log).count() >= 5.0)) {
@@ -536,7 +530,10 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
         if (ctx.root()) {
           std::cerr << "erg: stopped by signal " << sig << " at step " << s
                     << "; checkpoint written, resume with --resume\n";
-          progress.emit("{\"event\":\"stopped\",\"step\":" + std::to_string(s) + "}");
+          erg::v1::WorkerEvent e;
+          e.set_step(s);
+          e.mutable_stopped()->set_signal(sig);
+          progress.emit(e);
         }
         return 128 + sig;
       }
@@ -556,25 +553,30 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
     MPI_Reduce(&rss, &rss_sum, 1, MPI_LONG_LONG, MPI_SUM, 0, world);
     MPI_Reduce(&rss, &rss_max, 1, MPI_LONG_LONG, MPI_MAX, 0, world);
     const double cells = static_cast<double>(ctx.d.gnx) * static_cast<double>(ctx.d.gny);
-    const std::string totals = totals_json();
+    const erg::v1::WorkerEvent::Totals end_totals = totals();
     if (ctx.root()) {
       const StageTimes& t = sim->times();
-      std::ostringstream o;
-      o << "{\"event\":\"done\",\"step\":" << sim->step_index() << "," << totals
-        << ",\"halo_messages_per_step\":" << most[0] << ",\"halo_bytes_per_step\":" << most[1]
-        << ",\"peak_rss_bytes\":" << rss_sum << ",\"peak_rss_bytes_max_rank\":" << rss_max
-        << ",\"peak_rss_bytes_per_cell\":" << static_cast<double>(rss_sum) / cells
-        << ",\"stage_ms\":{";
+      erg::v1::WorkerEvent e;
+      e.set_step(sim->step_index());
+      auto& done = *e.mutable_done();
+      *done.mutable_totals() = end_totals;
+      done.set_halo_messages_per_step(most[0]);
+      done.set_halo_bytes_per_step(most[1]);
+      done.set_peak_rss_bytes(rss_sum);
+      done.set_peak_rss_bytes_max_rank(rss_max);
+      done.set_peak_rss_bytes_per_cell(static_cast<double>(rss_sum) / cells);
       for (int k = 0; k < kStageCount; ++k)
-        o << (k ? "," : "") << "\"" << kStageNames[k] << "\":" << t.ms[static_cast<size_t>(k)];
-      o << "}}";
-      progress.emit(o.str());
+        (*done.mutable_stage_ms())[kStageNames[k]] = t.ms[static_cast<size_t>(k)];
+      progress.emit(e);
     }
   } catch (const std::exception& e) {
     std::cerr << "erg-worker rank " << ctx.rank << ": run failed at step " << sim->step_index()
               << ": " << e.what() << "\n";
-    progress.emit("{\"event\":\"failed\",\"step\":" + std::to_string(sim->step_index()) +
-                  ",\"reason\":\"" + json_escape(e.what()) + "\"}");
+    erg::v1::WorkerEvent ev;
+    ev.set_step(sim->step_index());
+    ev.mutable_failed()->set_reason(job::valid_utf8(e.what()));
+    ev.mutable_failed()->set_rank(ctx.rank);
+    progress.emit(ev);
     if (ctx.tiled()) MPI_Abort(world, 1);  // never leave the other ranks waiting
     return 1;
   }
