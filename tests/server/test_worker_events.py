@@ -14,7 +14,7 @@ import unittest
 
 from ergd_fixture import Ergd, S, spec_json, terminal
 
-EVERY = 1000
+EVERY = 100
 
 
 class FailureReason(unittest.TestCase):
@@ -30,7 +30,7 @@ class FailureReason(unittest.TestCase):
 
     def test_a_reason_with_newlines_quotes_and_unicode_arrives_intact(self):
         e = self.ergd
-        job = e.submit(spec_json(name="blocked", nx=128, ny=128, steps=1000000,
+        job = e.submit(spec_json(name="blocked", nx=64, ny=64, steps=1000000,
                                  snapshot_every=EVERY, checkpoint_every=0))
         j = e.wait(job.id, until=lambda j: j.progress.step >= 1 or terminal(j.state))
         self.assertEqual(j.state, S.RUNNING, j.failure_reason + j.log_tail)
