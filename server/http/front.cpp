@@ -278,13 +278,15 @@ void HttpFront::request_complete_or_not(Conn& c) {
                                         std::to_string(lim_.max_header_bytes) + " bytes\n"));
     // The body's length: Content-Length only (no chunked request bodies).
     long long length = 0;
-    bool seen = false;
+    bool seen = false, expect = false;
     size_t p = c.in.find('\n');
     while (p != std::string::npos && p + 1 < c.header_end) {
       const size_t q = c.in.find('\n', p + 1);
       std::string line =
           lower(c.in.substr(p + 1, (q == std::string::npos ? c.header_end : q) - p - 1));
       p = q;
+      if (line.rfind("expect:", 0) == 0 && line.find("100-continue") != std::string::npos)
+        expect = true;
       if (line.rfind("transfer-encoding:", 0) == 0)
         return answer(
             c, plain_answer(411, "Length Required", "send the body with a Content-Length\n"));
@@ -305,6 +307,16 @@ void HttpFront::request_complete_or_not(Conn& c) {
                                         std::to_string(lim_.max_body_bytes) + " bytes\n"));
     c.need = c.header_end + static_cast<size_t>(length);
     c.deadline = mono_s() + lim_.body_timeout_s;
+    // A client that waits for "100 Continue" before its body (curl does for
+    // large ones) gets it now, as the body is what we wait for. Best effort:
+    // a client that misses it sends the body after its own timeout.
+    if (expect && c.in.size() < c.need) {
+      static const char kContinue[] = "HTTP/1.1 100 Continue\r\n\r\n";
+      if (c.ssl)
+        (void)SSL_write(c.ssl, kContinue, sizeof kContinue - 1);
+      else
+        (void)!::send(c.fd, kContinue, sizeof kContinue - 1, MSG_NOSIGNAL | MSG_DONTWAIT);
+    }
   }
   if (c.in.size() < c.need) return;
   c.in.resize(c.need);  // one request per connection: anything after it is dropped

@@ -154,6 +154,17 @@ class Deadlines(ErgdTest):
             self.assertIn(want, answer_of(s)[:40], raw[:60])
             s.close()
 
+    def test_a_client_that_expects_100_continue_gets_it(self):
+        s = socket.create_connection(("127.0.0.1", self.ergd.http_port), timeout=10)
+        s.sendall(b"POST /login HTTP/1.1\r\nHost: x\r\nExpect: 100-continue\r\n"
+                  b"Content-Type: application/x-www-form-urlencoded\r\n"
+                  b"Content-Length: 28\r\n\r\n")
+        s.settimeout(1.0)
+        self.assertTrue(s.recv(100).startswith(b"HTTP/1.1 100 Continue\r\n\r\n"))
+        s.sendall(b"token=wrong-token-0123456789")
+        self.assertIn(b" 401 ", answer_of(s))
+        s.close()
+
     def test_the_per_address_cap(self):
         port = self.ergd.http_port
         held = [slow_client(port, "127.0.0.3") for _ in range(4)]
