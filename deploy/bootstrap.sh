@@ -37,6 +37,12 @@ packages=(
   systemd
   # the Python gRPC client of the service tests, and the dashboard test
   python3-grpcio python3-protobuf chromium openssl
+  # readers of the snapshots as netCDF-4/CF (xarray over h5netcdf, with dask for
+  # open_mfdataset; ncdump), and
+  # ParaView's pvbatch (under a virtual X server) for the XDMF test
+  python3-xarray python3-h5netcdf python3-dask netcdf-bin paraview python3-paraview xvfb
+  # the Python package's tests (pip in a venv over the system site packages)
+  python3-venv python3-pip
 )
 
 missing=()

@@ -13,6 +13,13 @@ import numpy as np
 
 # --- snapshots ---------------------------------------------------------------
 
+def layer(f, name):
+    """A snapshot layer as [ny][nx] float64: stored (time, y, x) with one time
+    (netCDF-4 / CF), or [ny][nx] by erg before that layout."""
+    d = f[name]
+    return (d[0] if d.ndim == 3 else d[...]).astype(np.float64)
+
+
 def load_snapshot(path):
     """The fields and exact totals of one snapshot (README: Outputs)."""
     import h5py
@@ -28,8 +35,8 @@ def load_snapshot(path):
             "step": int(attr("step")),
             "time_days": float(attr("time_days")),
             "cell_size_m": float(attr("cell_size_m")),
-            "sand": f["sand"][:].astype(np.float64),
-            "bedrock": f["bedrock"][:].astype(np.float64),
+            "sand": layer(f, "sand"),
+            "bedrock": layer(f, "bedrock"),
             # Exact integers: Python ints from the decimal strings.
             "sand_units_total": int(str(attr("sand_units_total"))),
             "airborne_units_total": int(str(attr("airborne_units_total"))),

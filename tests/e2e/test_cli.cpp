@@ -108,22 +108,23 @@ TEST(Cli, RunWritesTheDocumentedOutputs) {
 import h5py, numpy as np, sys
 f = h5py.File(sys.argv[1], 'r')
 c = h5py.File(sys.argv[2], 'r')
-for n in ('bedrock', 'sand', 'vegetation', 'airborne', 'shadow', 'obstacles'):
-    assert f[n].shape == (48, 64) and f[n].dtype == np.float32, n
+# Layers are (time, y, x) with one time: netCDF-4 / CF (README).
+for n in ('bedrock', 'sand', 'vegetation', 'wind_x', 'wind_y', 'airborne', 'shadow', 'obstacles'):
+    assert f[n].shape == (1, 48, 64) and f[n].dtype == np.float32, n
+assert f.attrs['Conventions'] == 'CF-1.10' and f['time'][0] == f.attrs['time_days']
 # The obstacle disk (3 m high, radius 8 m at (60 m, 40 m)) holds no sand,
 # and the checkpoint carries the same mask.
-o = f['obstacles'][:]
+o = f['obstacles'][0]
 assert o.max() == 3 and 40 <= (o > 0).sum() <= 60, (o.max(), (o > 0).sum())
-assert (f['sand'][:][o > 0] == 0).all() and (f['airborne'][:][o > 0] == 0).all()
+assert (f['sand'][0][o > 0] == 0).all() and (f['airborne'][0][o > 0] == 0).all()
 assert (c['obstacles'][:] == o).all()
-assert f['wind'].shape == (48, 64, 2) and f['wind'].dtype == np.float32
 for a in ('step', 'time_days', 'cell_size_m', 'nx', 'ny', 'job_spec', 'erg_version', 'unit_m',
           'sand_units_total', 'bedrock_units_total'):
     assert a in f.attrs, a
 assert int(f.attrs['sand_units_total']) == int(c['sand_units'][:].astype(object).sum())
 assert int(f.attrs['bedrock_units_total']) == int(c['bedrock_units'][:].astype(object).sum())
 unit = f.attrs['unit_m']
-assert np.allclose(f['sand'][:], c['sand_units'][:] * unit, rtol=1e-6, atol=1e-6)
+assert np.allclose(f['sand'][0], c['sand_units'][:] * unit, rtol=1e-6, atol=1e-6)
 print('contract ok')
 )";
   write(t / "check.py", py);
@@ -161,7 +162,7 @@ assert f.attrs['cell_size_m'] == 0.5 and f.attrs['upsample'] == 4
 assert f.attrs['region_x0'] == 56 and f.attrs['region_w'] == 16
 # The heightmap follows the snapshot's terrain (cell 0,0 of the region is
 # snapshot cell (56, 40)), plus centimetres of ripples and bumps.
-t = s['bedrock'][:] + s['sand'][:]
+t = s['bedrock'][0] + s['sand'][0]
 c = h.reshape(12, 4, 16, 4).mean(axis=(1, 3))
 ref = np.roll(np.roll(t, -40, axis=0), -56, axis=1)[:12, :16]
 assert np.abs(c - ref).mean() < 0.25, np.abs(c - ref).mean()

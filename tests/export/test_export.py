@@ -66,8 +66,8 @@ def read_band(path):
 
 def snapshot(out, step):
     with h5py.File(os.path.join(out, "snapshots", f"step_{step:08d}.h5"), "r") as f:
-        b = f["bedrock"][...]
-        s = f["sand"][...]
+        b = f["bedrock"][0]
+        s = f["sand"][0]
         return {"bedrock": b, "sand": s, "height": (b + s).astype(np.float32),
                 "spec": f.attrs["job_spec"]}
 

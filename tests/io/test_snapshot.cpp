@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <sstream>
 #include <string>
@@ -182,19 +183,35 @@ expected = {
     "airborne": np.broadcast_to(x / 1024.0, (ny, nx)),
     "shadow": np.broadcast_to(x % 2, (ny, nx)),
 }
+expected["wind_x"] = np.broadcast_to(x - 18.5, (ny, nx))
+expected["wind_y"] = np.broadcast_to(y * 0.125 - 1.0, (ny, nx))
+units = {"bedrock": "m", "sand": "m", "vegetation": "1", "airborne": "m", "shadow": "1",
+         "wind_x": "m s-1", "wind_y": "m s-1"}
+standard = {"vegetation": "vegetation_area_fraction", "wind_x": "eastward_wind",
+            "wind_y": "northward_wind"}
 for name, want in expected.items():
     d = f[name]
     check(d.dtype == np.float32, name + " dtype " + str(d.dtype))
-    check(d.shape == (ny, nx), name + " shape " + str(d.shape))
-    check(d.chunks == (ny, nx), name + " chunks " + str(d.chunks))
+    check(d.shape == (1, ny, nx), name + " shape " + str(d.shape))
+    check(d.chunks == (1, ny, nx), name + " chunks " + str(d.chunks))
     check(d.compression == "gzip" and d.compression_opts == 4, name + " compression")
     check(d.shuffle, name + " shuffle")
-    check(np.array_equal(d[...], want.astype(np.float32)), name + " values")
-w = f["wind"]
-check(w.dtype == np.float32 and w.shape == (ny, nx, 2), "wind shape")
-check(w.chunks == (ny, nx, 2), "wind chunks")
-check(np.array_equal(w[..., 0], np.broadcast_to(x - 18.5, (ny, nx))), "wind x")
-check(np.array_equal(w[..., 1], np.broadcast_to(y * 0.125 - 1.0, (ny, nx))), "wind y")
+    check(np.array_equal(d[0], want.astype(np.float32)), name + " values")
+    # netCDF-4 dimensions: the coordinate datasets attached as dimension scales.
+    check([d.dims[k][0].name for k in range(3)] == ["/time", "/y", "/x"], name + " dims")
+    check(d.attrs["units"] == units[name], name + " units " + repr(d.attrs["units"]))
+    check(isinstance(d.attrs["long_name"], str) and d.attrs["long_name"], name + " long_name")
+    check(d.attrs.get("standard_name") == standard.get(name), name + " standard_name")
+check("wind" not in f, "no interleaved /wind")
+for name, n, values in (("x", nx, (np.arange(nx) + 0.5) * 0.5),
+                        ("y", ny, (np.arange(ny) + 0.5) * 0.5), ("time", 1, [12.75])):
+    c = f[name]
+    check(c.dtype == np.float64 and c.shape == (n,), name + " shape")
+    check(np.array_equal(c[...], values), name + " values " + repr(c[:4]))
+    check(h5py.h5ds.is_scale(c.id), name + " is a dimension scale")
+    check(c.attrs["axis"] == {"x": "X", "y": "Y", "time": "T"}[name], name + " axis")
+check(f["x"].attrs["units"] == "m" and f["time"].attrs["units"] == "day", "coordinate units")
+check(f.attrs["Conventions"] == "CF-1.10", "Conventions")
 
 a = f.attrs
 def typed(name, value, dtype):
@@ -342,24 +359,27 @@ TEST(Xdmf, IsWellFormedAndReferencesTheSnapshot) {
   ASSERT_FALSE(tags.empty());
   EXPECT_EQ(tags.front().rfind("Xdmf ", 0), 0u) << tags.front();
 
-  // Each cell attribute is present, cell-centred, and points at its dataset
-  // by a path relative to the XDMF file.
+  // Each attribute is present, node-centred, and points at its dataset by a
+  // path relative to the XDMF file.
   for (const char* name : {"bedrock", "sand", "vegetation", "wind", "height", "airborne"}) {
     EXPECT_NE(xml.find(std::string("<Attribute Name=\"") + name + "\""), std::string::npos) << name;
   }
   EXPECT_EQ(xml.find("Name=\"shadow\""), std::string::npos);
-  for (const char* ds : {"bedrock", "sand", "vegetation", "wind", "airborne"}) {
+  EXPECT_EQ(xml.find("Center=\"Cell\""), std::string::npos);
+  for (const char* ds : {"bedrock", "sand", "vegetation", "wind_x", "wind_y", "airborne"}) {
     EXPECT_NE(xml.find(std::string(">snap_000042.h5:/") + ds + "<"), std::string::npos) << ds;
   }
   EXPECT_NE(xml.find("AttributeType=\"Vector\""), std::string::npos);
   EXPECT_EQ(xml.find(dir.path().string()), std::string::npos) << "must not embed absolute paths";
 
-  // Mesh: nodes are cells + 1 in (y x) order; spacing is the cell size;
-  // attribute data is [ny][nx] ([ny][nx][2] for wind); time in days.
-  EXPECT_NE(xml.find("TopologyType=\"2DCoRectMesh\" Dimensions=\"24 38\""), std::string::npos);
-  EXPECT_NE(xml.find(">0.5 0.5</DataItem>"), std::string::npos);
-  EXPECT_NE(xml.find("Dimensions=\"23 37\""), std::string::npos);
-  EXPECT_NE(xml.find("Dimensions=\"23 37 2\""), std::string::npos);
+  // Mesh (XDMF orders z y x): one layer of ny x nx nodes at the cell centres,
+  // spacing the cell size; the data items are the [1][ny][nx] datasets, the
+  // wind a 3-vector; time in days. (pvbatch checks what ParaView makes of it:
+  // tests/paraview.)
+  EXPECT_NE(xml.find("TopologyType=\"3DCoRectMesh\" Dimensions=\"1 23 37\""), std::string::npos);
+  EXPECT_NE(xml.find(">0 0.25 0.25</DataItem>"), std::string::npos);
+  EXPECT_NE(xml.find(">0.5 0.5 0.5</DataItem>"), std::string::npos);
+  EXPECT_NE(xml.find("Dimensions=\"1 23 37 3\""), std::string::npos);
   EXPECT_NE(xml.find("<Time Value=\"12.75\"/>"), std::string::npos);
 
   // A real XML parser agrees, where one is installed.
@@ -386,6 +406,46 @@ TEST(Xdmf, EscapesFileNamesAndKeepsFullTimePrecision) {
   double t = 0;
   is >> t;
   EXPECT_EQ(t, 0.1);
+}
+
+// DIR/run.xdmf: every snapshot's grid in step order (not name order), HDF5
+// paths relative to DIR, inside one temporal collection; rewritten whole.
+TEST(Xdmf, RunCollectsEverySnapshotInStepOrder) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.file("snapshots"));
+  Sample s;
+  for (long long step : {20, 100000000, 5}) {
+    s.meta.step = step;
+    s.meta.time_days = static_cast<double>(step) * 0.5;
+    const std::string name =
+        "step_" + std::string(step < 100000000 ? 8 - std::to_string(step).size() : 0, '0') +
+        std::to_string(step);
+    write_xdmf(dir.file("snapshots/" + name + ".xdmf"), name + ".h5", s.meta, false, false);
+    write_run_xdmf(dir.path().string());
+  }
+  testing::write_bytes(dir.file("snapshots/notes.xdmf"), "not a snapshot");
+  write_run_xdmf(dir.path().string());
+  const std::string xml = read_bytes(dir.file("run.xdmf"));
+  std::string error;
+  parse_tags(xml, &error);
+  ASSERT_EQ(error, "") << xml;
+  EXPECT_NE(xml.find("GridType=\"Collection\" CollectionType=\"Temporal\""), std::string::npos);
+  const std::size_t a = xml.find("<Time Value=\"2.5\"/>"), b = xml.find("<Time Value=\"10\"/>"),
+                    c = xml.find("<Time Value=\"50000000\"/>");
+  ASSERT_NE(a, std::string::npos) << xml;
+  ASSERT_NE(b, std::string::npos);
+  ASSERT_NE(c, std::string::npos);
+  EXPECT_LT(a, b);
+  EXPECT_LT(b, c);
+  EXPECT_NE(xml.find(">snapshots/step_00000020.h5:/sand<"), std::string::npos);
+  EXPECT_NE(xml.find(">snapshots/step_100000000.h5:/wind_y<"), std::string::npos);
+  EXPECT_EQ(xml.find(">step_"), std::string::npos);
+  EXPECT_EQ(xml.find("notes"), std::string::npos);
+  std::size_t grids = 0;
+  for (std::size_t k = xml.find("GridType=\"Uniform\""); k != std::string::npos;
+       k = xml.find("GridType=\"Uniform\"", k + 1))
+    ++grids;
+  EXPECT_EQ(grids, 3u);
 }
 
 }  // namespace

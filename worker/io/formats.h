@@ -26,17 +26,24 @@ inline constexpr int kSnapshotDeflate = 4;
 // Fails unless nx and ny are positive ("invalid grid ...").
 void check_grid(const std::string& path, int nx, int ny);
 
-// One float32 layer of a snapshot: /<name>, [ny][nx] (components == 1) or
-// [ny][nx][2] (the wind).
+// One float32 layer of a snapshot: /<name>, [1][ny][nx] (dimensions time, y,
+// x; cf.h). Its values in memory are data[stride * c + offset] for the cells c
+// in row-major order: stride 2 and offset 0 or 1 pick the x or y component of
+// the interleaved wind.
 struct SnapshotLayer {
   const char* name;
   const float* data;
-  int components;
+  int stride = 1, offset = 0;
 };
-// The layers in file order: the four required ones, then airborne, shadow and obstacles
-// where asked for (their pointers as given, which may be null).
+// The layers in file order: bedrock, sand, vegetation, wind_x, wind_y, then
+// airborne, shadow and obstacles where asked for (their pointers as given,
+// which may be null).
 std::vector<SnapshotLayer> snapshot_layers(const SnapshotFields& f, bool with_airborne,
                                            bool with_shadow, bool with_obstacles = false);
+
+// The memory dataspace of a layer's values for `cells` cells (a strided
+// selection of cells * stride floats).
+Hid layer_memory_space(const SnapshotLayer& l, std::size_t cells, const std::string& path);
 
 // The root attributes of a snapshot (SnapshotMeta plus the fixed "periodic"
 // and "units").

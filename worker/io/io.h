@@ -48,18 +48,31 @@ struct SnapshotFields {
   const float* obstacles = nullptr;   // obstacle height, metres (0: none); optional
 };
 
-// Writes datasets /bedrock /sand /vegetation (float32 [ny][nx]), /wind
-// (float32 [ny][nx][2]) and, when given, /airborne /shadow; deflate+shuffle,
-// chunked; the root attributes of SnapshotMeta. Atomic (write then rename).
+// Writes datasets /bedrock /sand /vegetation /wind_x /wind_y (float32
+// [1][ny][nx], dimensions time, y, x) and, when given, /airborne /shadow
+// /obstacles; deflate+shuffle, chunked; the coordinates /time /y /x and the
+// CF metadata (a netCDF-4 file, io/cf.h); the root attributes of
+// SnapshotMeta. Atomic (write then rename).
 void write_snapshot(const std::string& path, const SnapshotMeta& meta, const SnapshotFields& f);
 
-// XDMF sidecar so ParaView opens the snapshot (2-D structured grid, cell size
-// as spacing, attributes bedrock, sand, vegetation, wind, height). `h5_name`
-// is the snapshot file name relative to the XDMF file.
+// XDMF sidecar so ParaView opens the snapshot: the grid in the X-Y plane,
+// nodes at the cell centres (the CF x and y), node attributes height
+// (bedrock + sand, ready for Warp By Scalar), bedrock, sand, vegetation, wind
+// (x, y, 0) and the optional layers, and the simulated time in days.
+// `h5_name` is the snapshot file name relative to the XDMF file. Atomic.
 void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const SnapshotMeta& meta,
                 bool has_airborne, bool has_shadow, bool has_obstacles = false);
+// The sidecar of an existing snapshot file, next to it (".h5" -> ".xdmf"),
+// from the file's own attributes and datasets (erg fetch).
+void write_xdmf_for(const std::string& h5_path);
+// DIR/run.xdmf: a temporal collection of every DIR/snapshots/step_N.xdmf in
+// step order, which ParaView opens as one animated run. Atomic: rewritten
+// whole after each snapshot, so a reader always sees a complete collection.
+void write_run_xdmf(const std::string& dir);
 
-// Reads a snapshot back (tests, tools). Missing optional datasets stay empty;
+// Reads a snapshot back (tests, tools); files written before the CF layout
+// ([ny][nx] layers, an interleaved /wind) are read too; `wind` is always
+// interleaved [ny][nx][2]. Missing optional datasets stay empty;
 // terrain_only reads bedrock, sand and vegetation alone (what a preview
 // needs: 12 of the 28 bytes per cell).
 struct Snapshot {

@@ -44,6 +44,7 @@
 #include <vector>
 
 #include "io/atomic_file.h"
+#include "io/cf.h"
 #include "io/formats.h"
 #include "io/hdf5_util.h"
 #include "io/io.h"
@@ -267,14 +268,15 @@ Hid collective_dxpl(const std::string& path) {
 }
 
 // The selections of one rank's slab: in the file, the hyperslab at (y0, x0)
-// of [ny][nx](x components); in memory, the contiguous tile. An empty slab
+// of [ny][nx], or of [1][ny][nx] for a snapshot layer; in memory, the
+// contiguous tile, or the layer's strided values (formats.h). An empty slab
 // selects nothing on both sides (the rank still joins the collective call).
 struct SlabSelection {
   Hid file_space, mem_space;
 };
 
-SlabSelection select_slab(hid_t dset, const TileSlab& s, int components, const std::string& path,
-                          const std::string& what) {
+SlabSelection select_slab(hid_t dset, const TileSlab& s, const detail::SnapshotLayer* layer,
+                          const std::string& path, const std::string& what) {
   SlabSelection sel;
   sel.file_space = detail::checked(H5Dget_space(dset), H5Sclose, path, "dataspace of " + what);
   if (slab_empty(s)) {
@@ -287,13 +289,17 @@ SlabSelection select_slab(hid_t dset, const TileSlab& s, int components, const s
   }
   std::vector<hsize_t> start = {static_cast<hsize_t>(s.y0), static_cast<hsize_t>(s.x0)};
   std::vector<hsize_t> count = {static_cast<hsize_t>(s.ny), static_cast<hsize_t>(s.nx)};
-  if (components > 1) {
-    start.push_back(0);
-    count.push_back(static_cast<hsize_t>(components));
+  if (layer) {
+    start.insert(start.begin(), 0);
+    count.insert(count.begin(), 1);
   }
   detail::check(H5Sselect_hyperslab(sel.file_space.get(), H5S_SELECT_SET, start.data(), nullptr,
                                     count.data(), nullptr),
                 path, "cannot select tile " + slab_text(s) + " of " + what);
+  if (layer) {
+    sel.mem_space = detail::layer_memory_space(*layer, slab_cells(s), path);
+    return sel;
+  }
   sel.mem_space =
       detail::checked(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr),
                       H5Sclose, path, "memory dataspace for " + what);
@@ -310,18 +316,19 @@ struct TileWriter {
   int nx, ny;              // global
   int chunk_nx, chunk_ny;  // requested; clamped to the grid
 
-  // Creates /<name> ([ny][nx] or [ny][nx][components]) chunked by tile and
-  // writes this rank's slab from `data` (the tile, row-major), collectively.
-  // Each step is agreed on before the next.
-  void write(const char* name, hid_t file_type, hid_t mem_type, int components, const void* data,
-             int deflate_level) {
+  // Creates /<name> ([ny][nx], or [1][ny][nx] for a snapshot `layer`)
+  // chunked by tile and writes this rank's slab from `data` (the tile,
+  // row-major; a layer's values strided as it says), collectively. Each step
+  // is agreed on before the next.
+  void write(const char* name, hid_t file_type, hid_t mem_type, const void* data, int deflate_level,
+             const detail::SnapshotLayer* layer = nullptr) {
     const std::string what = std::string("dataset '") + name + "'";
     std::vector<hsize_t> dims = {static_cast<hsize_t>(ny), static_cast<hsize_t>(nx)};
     std::vector<hsize_t> chunk = {static_cast<hsize_t>(std::min(chunk_ny, ny)),
                                   static_cast<hsize_t>(std::min(chunk_nx, nx))};
-    if (components > 1) {
-      dims.push_back(static_cast<hsize_t>(components));
-      chunk.push_back(static_cast<hsize_t>(components));
+    if (layer) {
+      dims.insert(dims.begin(), 1);
+      chunk.insert(chunk.begin(), 1);
     }
     Hid dset;
     co.run([&] {
@@ -335,7 +342,7 @@ struct TileWriter {
     });
     co.agree();
     co.run([&] {
-      SlabSelection sel = select_slab(dset.get(), slab, components, path, what);
+      SlabSelection sel = select_slab(dset.get(), slab, layer, path, what);
       // HDF5 wants a buffer even when nothing is selected.
       static const double kNothing = 0;
       const void* buf = data ? data : &kNothing;
@@ -516,10 +523,14 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
   const bool has_airborne = have[0] != 0, has_shadow = have[1] != 0, has_obstacles = have[2] != 0;
 
   SizeBound bound;
-  for (const detail::SnapshotLayer& l :
-       detail::snapshot_layers(f, has_airborne, has_shadow, has_obstacles)) {
-    bound.add_dataset(meta.nx, meta.ny, l.components, sizeof(float), chunk_nx, chunk_ny);
+  for (std::size_t k = 0;
+       k < detail::snapshot_layers(f, has_airborne, has_shadow, has_obstacles).size(); ++k) {
+    bound.add_dataset(meta.nx, meta.ny, 1, sizeof(float), chunk_nx, chunk_ny);
   }
+  // The CF coordinates and metadata (cf.h): a few KiB per layer at most.
+  bound.bytes +=
+      8 * (static_cast<std::uint64_t>(meta.nx) + static_cast<std::uint64_t>(meta.ny) + 1) +
+      (std::uint64_t{4} << 10) * 12;
   for (const std::string* s :
        {&meta.job_spec_json, &meta.erg_version, &meta.sand_units_total, &meta.bedrock_units_total,
         &meta.airborne_units_total, &meta.backend}) {
@@ -533,12 +544,16 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
     co.agree();
     TileWriter w{co, file, dxpl.get(), path, slab, meta.nx, meta.ny, chunk_nx, chunk_ny};
     // The optional layers as agreed above (a rank without cells may pass null).
+    std::vector<std::string> names;
     for (const detail::SnapshotLayer& l :
          detail::snapshot_layers(f, has_airborne, has_shadow, has_obstacles)) {
-      w.write(l.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, l.components, l.data,
-              detail::kSnapshotDeflate);
+      w.write(l.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, l.data, detail::kSnapshotDeflate, &l);
+      names.emplace_back(l.name);
     }
     co.run([&] { detail::write_snapshot_attrs(file, meta, path); });
+    co.agree();
+    // The coordinates' values from rank 0, the metadata from every rank.
+    co.run([&] { detail::write_cf(file, meta, names, dxpl.get(), co.rank() == 0, path); });
     co.agree();
   });
 }
@@ -609,10 +624,10 @@ void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Che
     co.agree();
     TileWriter w{co, file, dxpl.get(), path, slab, c.nx, c.ny, chunk_nx, chunk_ny};
     auto ints = [&](const char* name, const std::vector<std::int64_t>& v) {
-      w.write(name, H5T_STD_I64LE, H5T_NATIVE_INT64, 1, v.data(), detail::kCheckpointDeflate);
+      w.write(name, H5T_STD_I64LE, H5T_NATIVE_INT64, v.data(), detail::kCheckpointDeflate);
     };
     auto floats = [&](const char* name, const std::vector<float>& v) {
-      w.write(name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 1, v.data(), detail::kCheckpointDeflate);
+      w.write(name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, v.data(), detail::kCheckpointDeflate);
     };
     ints("bedrock_units", c.bedrock_units);
     ints("sand_units", c.sand_units);
@@ -665,7 +680,7 @@ Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, cons
       }
       values.resize(slab_empty(slab) ? 0 : slab_cells(slab));
       const std::string what = std::string("dataset '") + name + "'";
-      SlabSelection sel = select_slab(dset.get(), slab, 1, path, what);
+      SlabSelection sel = select_slab(dset.get(), slab, nullptr, path, what);
       static double nothing = 0;
       void* buf = values.empty() ? static_cast<void*>(&nothing) : values.data();
       detail::check(

@@ -1,14 +1,15 @@
 // Snapshots: one HDF5 file per output step (float32 layers in metres plus the
-// run's metadata as root attributes) and an XDMF sidecar for ParaView. The
-// file contract is documented in README.md; keep the two in step.
+// run's metadata as root attributes), a netCDF-4 file with CF metadata
+// (cf.cpp); the XDMF sidecars for ParaView are in xdmf.cpp. The file contract
+// is documented in README.md; keep the two in step.
+#include <algorithm>
 #include <climits>
 #include <cstdint>
-#include <locale>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "io/atomic_file.h"
+#include "io/cf.h"
 #include "io/formats.h"
 #include "io/hdf5_util.h"
 #include "io/io.h"
@@ -27,14 +28,27 @@ void detail::check_grid(const std::string& path, int nx, int ny) {
 std::vector<detail::SnapshotLayer> detail::snapshot_layers(const SnapshotFields& f,
                                                            bool with_airborne, bool with_shadow,
                                                            bool with_obstacles) {
-  std::vector<SnapshotLayer> layers = {{"bedrock", f.bedrock, 1},
-                                       {"sand", f.sand, 1},
-                                       {"vegetation", f.vegetation, 1},
-                                       {"wind", f.wind, 2}};
-  if (with_airborne) layers.push_back({"airborne", f.airborne, 1});
-  if (with_shadow) layers.push_back({"shadow", f.shadow, 1});
-  if (with_obstacles) layers.push_back({"obstacles", f.obstacles, 1});
+  std::vector<SnapshotLayer> layers = {{"bedrock", f.bedrock},
+                                       {"sand", f.sand},
+                                       {"vegetation", f.vegetation},
+                                       {"wind_x", f.wind, 2, 0},
+                                       {"wind_y", f.wind, 2, 1}};
+  if (with_airborne) layers.push_back({"airborne", f.airborne});
+  if (with_shadow) layers.push_back({"shadow", f.shadow});
+  if (with_obstacles) layers.push_back({"obstacles", f.obstacles});
   return layers;
+}
+
+detail::Hid detail::layer_memory_space(const SnapshotLayer& l, std::size_t cells,
+                                       const std::string& path) {
+  const hsize_t n = static_cast<hsize_t>(cells) * static_cast<hsize_t>(l.stride);
+  Hid mem = checked(H5Screate_simple(1, &n, nullptr), H5Sclose, path,
+                    std::string("memory dataspace for '") + l.name + "'");
+  const hsize_t start = static_cast<hsize_t>(l.offset), stride = static_cast<hsize_t>(l.stride),
+                count = static_cast<hsize_t>(cells);
+  check(H5Sselect_hyperslab(mem.get(), H5S_SELECT_SET, &start, &stride, &count, nullptr), path,
+        std::string("cannot select the values of '") + l.name + "'");
+  return mem;
 }
 
 void detail::write_snapshot_attrs(hid_t fid, const SnapshotMeta& meta, const std::string& path) {
@@ -63,6 +77,41 @@ using detail::check_grid;
 using detail::fail;
 using detail::Hid;
 
+// Writes one layer as /<name> [1][ny][nx], chunks of at most 1 x 256 x 256.
+void write_layer(hid_t fid, const detail::SnapshotLayer& l, hsize_t ny, hsize_t nx,
+                 const std::string& path) {
+  const std::string what = std::string("dataset '") + l.name + "'";
+  const std::vector<hsize_t> dims = {1, ny, nx};
+  Hid space = detail::checked(H5Screate_simple(3, dims.data(), nullptr), H5Sclose, path,
+                              "dataspace for " + what);
+  Hid dcpl = detail::deflate_dcpl({1, std::min<hsize_t>(ny, 256), std::min<hsize_t>(nx, 256)},
+                                  detail::kSnapshotDeflate, path);
+  Hid dset = detail::checked(
+      H5Dcreate2(fid, l.name, H5T_IEEE_F32LE, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+      H5Dclose, path, "cannot create " + what);
+  Hid mem = detail::layer_memory_space(l, static_cast<std::size_t>(ny * nx), path);
+  detail::check(H5Dwrite(dset.get(), H5T_NATIVE_FLOAT, mem.get(), H5S_ALL, H5P_DEFAULT, l.data),
+                path, "cannot write " + what);
+  detail::close_checked(dset, path, "cannot close " + what);
+}
+
+// Reads a layer written as [1][ny][nx] or, by erg before the CF layout, as
+// [ny][nx].
+std::vector<float> read_layer(hid_t fid, const char* name, hsize_t ny, hsize_t nx,
+                              const std::string& path) {
+  std::vector<hsize_t> dims;
+  Hid dset = detail::open_dataset(fid, name, dims, path);
+  const std::vector<hsize_t> want = {1, ny, nx}, old = {ny, nx};
+  if (dims != want && dims != old) {
+    fail(path, std::string("dataset '") + name + "' has shape " + detail::shape_text(dims) +
+                   ", expected " + detail::shape_text(want));
+  }
+  std::vector<float> values(static_cast<std::size_t>(ny * nx));
+  detail::check(H5Dread(dset.get(), H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data()),
+                path, std::string("cannot read dataset '") + name + "' (corrupt?)");
+  return values;
+}
+
 // Reads nx or ny back, rejecting values that do not fit the int of the API.
 int read_extent(hid_t file, const char* name, const std::string& path) {
   std::int64_t v = detail::read_attr_i64(file, name, path);
@@ -70,44 +119,6 @@ int read_extent(hid_t file, const char* name, const std::string& path) {
     fail(path, std::string("attribute '") + name + "' = " + std::to_string(v) + " is out of range");
   }
   return static_cast<int>(v);
-}
-
-// Numbers in the XDMF text: locale-independent, and doubles with enough
-// digits to round-trip exactly.
-std::ostringstream xml_stream() {
-  std::ostringstream os;
-  os.imbue(std::locale::classic());
-  os.precision(17);
-  return os;
-}
-
-// The five XML special characters, for names and paths placed in attributes
-// or text. File names with '&' or '<' are rare but legal.
-std::string xml_escape(const std::string& s) {
-  std::string out;
-  out.reserve(s.size());
-  for (char c : s) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      case '\'':
-        out += "&apos;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
 }
 
 }  // namespace
@@ -126,85 +137,18 @@ void write_snapshot(const std::string& path, const SnapshotMeta& meta, const Sna
     Hid file = detail::create_hdf5_in_memory(out);
     const hid_t fid = file.get();
     const hsize_t ny = static_cast<hsize_t>(meta.ny), nx = static_cast<hsize_t>(meta.nx);
+    std::vector<std::string> names;
     for (const detail::SnapshotLayer& l :
          detail::snapshot_layers(f, f.airborne, f.shadow, f.obstacles)) {
-      std::vector<hsize_t> dims = {ny, nx};
-      if (l.components > 1) dims.push_back(static_cast<hsize_t>(l.components));
-      detail::write_dataset(fid, l.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, dims, l.data,
-                            detail::kSnapshotDeflate, path);
+      write_layer(fid, l, ny, nx, path);
+      names.emplace_back(l.name);
     }
     detail::write_snapshot_attrs(fid, meta, path);
+    detail::write_cf(fid, meta, names, H5P_DEFAULT, /*write_values=*/true, path);
 
     image = detail::take_hdf5_image(file, path);
   }
   out.write_whole(image.data(), image.size());
-  out.commit();
-}
-
-void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const SnapshotMeta& meta,
-                bool has_airborne, bool has_shadow, bool has_obstacles) {
-  check_grid(xdmf_path, meta.nx, meta.ny);
-  if (h5_name.empty()) fail(xdmf_path, "XDMF needs the name of its HDF5 file");
-
-  // XDMF orders dimensions slowest first ("ny nx"), like the HDF5 datasets.
-  // A CoRectMesh topology counts nodes, so cell-centred [ny][nx] data sits on
-  // a mesh of (ny+1) x (nx+1) nodes; cells are square with side cell_size_m.
-  std::ostringstream os = xml_stream();
-  const std::string cells = std::to_string(meta.ny) + " " + std::to_string(meta.nx);
-  const std::string nodes = std::to_string(meta.ny + 1) + " " + std::to_string(meta.nx + 1);
-  const std::string h5 = xml_escape(h5_name);
-  auto data_item = [&](const std::string& dataset, const std::string& dims, const char* indent) {
-    os << indent << "<DataItem Dimensions=\"" << dims
-       << "\" NumberType=\"Float\" Precision=\"4\" Format=\"HDF\">" << h5 << ":/" << dataset
-       << "</DataItem>\n";
-  };
-  auto scalar = [&](const std::string& name) {
-    os << "      <Attribute Name=\"" << name << "\" AttributeType=\"Scalar\" Center=\"Cell\">\n";
-    data_item(name, cells, "        ");
-    os << "      </Attribute>\n";
-  };
-
-  os << "<?xml version=\"1.0\" ?>\n"
-     << "<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n"
-     << "<Xdmf Version=\"3.0\" xmlns:xi=\"http://www.w3.org/2001/XInclude\">\n"
-     << "  <Domain>\n"
-     << "    <Grid Name=\"erg\" GridType=\"Uniform\">\n"
-     << "      <Time Value=\"" << meta.time_days << "\"/>\n"
-     << "      <Topology TopologyType=\"2DCoRectMesh\" Dimensions=\"" << nodes << "\"/>\n"
-     << "      <Geometry GeometryType=\"ORIGIN_DXDY\">\n"
-     << "        <DataItem Name=\"Origin\" Dimensions=\"2\" NumberType=\"Float\" Precision=\"8\" "
-        "Format=\"XML\">0 0</DataItem>\n"
-     << "        <DataItem Name=\"Spacing\" Dimensions=\"2\" NumberType=\"Float\" Precision=\"8\" "
-        "Format=\"XML\">"
-     << meta.cell_size_m << " " << meta.cell_size_m << "</DataItem>\n"
-     << "      </Geometry>\n";
-  scalar("bedrock");
-  scalar("sand");
-  scalar("vegetation");
-  // Surface height = bedrock + sand, computed by the reader (an XDMF
-  // Function item) rather than stored twice.
-  os << "      <Attribute Name=\"height\" AttributeType=\"Scalar\" Center=\"Cell\">\n"
-     << "        <DataItem ItemType=\"Function\" Function=\"$0 + $1\" Dimensions=\"" << cells
-     << "\">\n";
-  data_item("bedrock", cells, "          ");
-  data_item("sand", cells, "          ");
-  os << "        </DataItem>\n"
-     << "      </Attribute>\n";
-  // Two components (east, north): ParaView colours by it and computes with
-  // it; for arrow glyphs extend it to 3-D with a Calculator.
-  os << "      <Attribute Name=\"wind\" AttributeType=\"Vector\" Center=\"Cell\">\n";
-  data_item("wind", cells + " 2", "        ");
-  os << "      </Attribute>\n";
-  if (has_airborne) scalar("airborne");
-  if (has_shadow) scalar("shadow");
-  if (has_obstacles) scalar("obstacles");
-  os << "    </Grid>\n"
-     << "  </Domain>\n"
-     << "</Xdmf>\n";
-
-  const std::string text = os.str();
-  AtomicFile out(xdmf_path);
-  out.write_whole(text.data(), text.size());
   out.commit();
 }
 
@@ -230,18 +174,25 @@ Snapshot read_snapshot(const std::string& path, bool terrain_only) {
   m.backend = detail::read_attr_str(fid, "backend", path);
 
   const hsize_t ny = static_cast<hsize_t>(m.ny), nx = static_cast<hsize_t>(m.nx);
-  const std::vector<hsize_t> grid = {ny, nx};
-  auto layer = [&](const char* name, const std::vector<hsize_t>& dims) {
-    return detail::read_dataset<float>(fid, name, H5T_NATIVE_FLOAT, dims, path);
-  };
-  s.bedrock = layer("bedrock", grid);
-  s.sand = layer("sand", grid);
-  s.vegetation = layer("vegetation", grid);
+  auto layer = [&](const char* name) { return read_layer(fid, name, ny, nx, path); };
+  s.bedrock = layer("bedrock");
+  s.sand = layer("sand");
+  s.vegetation = layer("vegetation");
   if (terrain_only) return s;
-  s.wind = layer("wind", {ny, nx, 2});
-  if (detail::link_exists(fid, "airborne")) s.airborne = layer("airborne", grid);
-  if (detail::link_exists(fid, "shadow")) s.shadow = layer("shadow", grid);
-  if (detail::link_exists(fid, "obstacles")) s.obstacles = layer("obstacles", grid);
+  if (detail::link_exists(fid, "wind_x") || !detail::link_exists(fid, "wind")) {
+    const std::vector<float> wx = layer("wind_x"), wy = layer("wind_y");
+    s.wind.resize(2 * wx.size());
+    for (std::size_t c = 0; c < wx.size(); ++c) {
+      s.wind[2 * c] = wx[c];
+      s.wind[2 * c + 1] = wy[c];
+    }
+  } else {
+    // Files written before the CF layout: one interleaved [ny][nx][2] /wind.
+    s.wind = detail::read_dataset<float>(fid, "wind", H5T_NATIVE_FLOAT, {ny, nx, 2}, path);
+  }
+  if (detail::link_exists(fid, "airborne")) s.airborne = layer("airborne");
+  if (detail::link_exists(fid, "shadow")) s.shadow = layer("shadow");
+  if (detail::link_exists(fid, "obstacles")) s.obstacles = layer("obstacles");
   return s;
 }
 

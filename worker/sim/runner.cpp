@@ -96,6 +96,7 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
     io::write_snapshot(h5, meta, f);
   if (!ctx.root()) return;
   io::write_xdmf(dir + "/snapshots/" + name + ".xdmf", name + ".h5", meta, true, true, true);
+  io::write_run_xdmf(dir);
   std::string png;
   if (previews) {
     png = dir + "/previews/" + name + ".png";

@@ -1,0 +1,117 @@
+"""ParaView opens erg's XDMF as its users expect: each snapshot in the X-Y
+plane with node data at the cell centres, height ready for Warp By Scalar
+along +Z, and DIR/run.xdmf one animated run. ParaView's own pvbatch reads the
+files (tests/formats/pv_inspect.py) and what it sees is checked against the
+snapshots read by h5py. A warped, coloured screenshot is rendered under
+xvfb-run (ERG_PARAVIEW_SCREENSHOT=FILE keeps a copy; README's
+docs/paraview.png is made that way)."""
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+import unittest
+
+import numpy as np
+from PIL import Image
+
+import run_helper as R
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def pvbatch(xdmf, screenshot=None):
+    """What ParaView sees in `xdmf` (pv_inspect.py's JSON)."""
+    cmd = ["xvfb-run", "-a", "pvbatch", os.path.join(HERE, "pv_inspect.py"), xdmf]
+    if screenshot:
+        cmd.append(screenshot)
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    lines = [ln for ln in p.stdout.splitlines() if ln.startswith("ERG_PV ")]
+    if p.returncode != 0 or not lines:
+        raise AssertionError(f"pvbatch exited {p.returncode}:\n{p.stdout}\n{p.stderr}")
+    return json.loads(lines[-1][len("ERG_PV "):])
+
+
+class ParaView(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        for tool in ("pvbatch", "xvfb-run"):
+            if not shutil.which(tool):
+                raise AssertionError(f"{tool} not found: run deploy/bootstrap.sh")
+        cls.tmp = tempfile.TemporaryDirectory(prefix="erg_paraview_")
+        cls.run_dir = R.make_run(cls.tmp.name)
+        cls.snaps = R.snapshots(cls.run_dir)
+        cls.files = [R.read(p) for _, p in cls.snaps]
+        cls.shot = os.path.join(cls.tmp.name, "shot.png")
+        cls.seen = pvbatch(os.path.join(cls.run_dir, "run.xdmf"), cls.shot)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def check_step(self, seen, h):
+        half = R.CELL / 2
+        # The X-Y plane, z = 0, one node per cell centre.
+        self.assertEqual(seen["type"], "vtkImageData")
+        self.assertEqual(seen["dimensions"], [R.NX, R.NY, 1])
+        self.assertEqual(seen["bounds"], [half, R.NX * R.CELL - half, half, R.NY * R.CELL - half,
+                                          0.0, 0.0])
+        arrays = seen["arrays"]
+        self.assertEqual(set(arrays), {"height", "bedrock", "sand", "vegetation", "wind",
+                                       "airborne", "shadow", "obstacles"})
+        for name in ("bedrock", "sand", "vegetation", "airborne", "shadow", "obstacles"):
+            a = arrays[name]
+            self.assertEqual((a["components"], a["tuples"]), (1, R.NX * R.NY), name)
+            self.assertEqual(a["range"][0], [float(h[name].min()), float(h[name].max())], name)
+        np.testing.assert_allclose(arrays["height"]["range"][0],
+                                   [h["height"].min(), h["height"].max()], rtol=0, atol=1e-5)
+        wind = arrays["wind"]
+        self.assertEqual(wind["components"], 3)
+        self.assertEqual(wind["range"][0], [float(h["wind_x"].min()), float(h["wind_x"].max())])
+        self.assertEqual(wind["range"][1], [float(h["wind_y"].min()), float(h["wind_y"].max())])
+        self.assertEqual(wind["range"][2], [0.0, 0.0])
+        # Point (i, j) is cell (i, j): x east, y north, row 0 south.
+        for key, s in seen["samples"].items():
+            i, j = map(int, key.split(","))
+            self.assertEqual(s["point"], [(i + 0.5) * R.CELL, (j + 0.5) * R.CELL, 0.0], key)
+            self.assertEqual(s["sand"], float(h["sand"][j, i]), key)
+            self.assertAlmostEqual(s["height"], float(h["height"][j, i]), places=5)
+            self.assertEqual(s["wind"][:2], [float(h["wind_x"][j, i]), float(h["wind_y"][j, i])])
+        # Warp By Scalar (height, scale 1) lifts along +Z to the heights.
+        wb = seen["warped_bounds"]
+        self.assertEqual(wb[:4], seen["bounds"][:4])
+        self.assertAlmostEqual(wb[4], float(h["height"].min()), places=4)
+        self.assertAlmostEqual(wb[5], float(h["height"].max()), places=4)
+
+    def test_run_xdmf_is_the_run_in_time(self):
+        want = [float(h["time"][0]) for h in self.files]
+        self.assertEqual(want, [10.0 * s for s, _ in self.snaps])
+        self.assertEqual(self.seen["times"], want)
+        self.assertEqual(len(self.seen["steps"]), len(self.files))
+        for seen, h in zip(self.seen["steps"], self.files):
+            with self.subTest(time=seen["time"]):
+                self.check_step(seen, h)
+        # The steps differ: ParaView shows each file, not the first one again.
+        self.assertNotEqual(self.seen["steps"][0]["arrays"]["sand"]["range"],
+                            self.seen["steps"][-1]["arrays"]["sand"]["range"])
+
+    def test_each_snapshot_opens_alone(self):
+        step, path = self.snaps[-1]
+        seen = pvbatch(path[:-3] + ".xdmf")
+        self.assertEqual(seen["times"], [10.0 * step])
+        self.check_step(seen["steps"][0], self.files[-1])
+
+    def test_screenshot_is_a_picture(self):
+        img = np.asarray(Image.open(self.shot).convert("RGB")).astype(int)
+        self.assertEqual(img.shape, (800, 1200, 3))
+        # Not blank: the terrain covers a good part of the frame in many colours.
+        non_white = (img < 250).any(axis=2).mean()
+        self.assertGreater(non_white, 0.15)
+        self.assertGreater(len(np.unique(img.reshape(-1, 3), axis=0)), 500)
+        keep = os.environ.get("ERG_PARAVIEW_SCREENSHOT")
+        if keep:
+            shutil.copyfile(self.shot, keep)
+
+
+if __name__ == "__main__":
+    unittest.main()
