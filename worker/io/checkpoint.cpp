@@ -2,8 +2,10 @@
 // continue bitwise identically. Layout (all [ny][nx], deflate + shuffle):
 //   int64   /bedrock_units /sand_units /airborne_units
 //   float32 /vegetation /resistance
-// root attributes: format = "erg-checkpoint", format_version = 1, step, nx,
-// ny (int64), job_spec (string) and one string "ledger_<name>" per ledger.
+// root attributes: format = "erg-checkpoint", format_version = 2, step, nx,
+// ny (int64), job_spec (string), one string "ledger_<name>" per ledger and,
+// written last, "checksums" (integrity.h): readers verify every dataset, the
+// spec and the other attributes against it.
 #include <climits>
 #include <cstdint>
 #include <string>
@@ -13,6 +15,7 @@
 #include "io/atomic_file.h"
 #include "io/formats.h"
 #include "io/hdf5_util.h"
+#include "io/integrity.h"
 #include "io/io.h"
 
 namespace erg::io {
@@ -24,7 +27,9 @@ using detail::Hid;
 using detail::kCheckpointDeflate;
 
 constexpr const char* kFormat = "erg-checkpoint";
-constexpr std::int64_t kFormatVersion = 1;
+// 2: with checksums. Version 1 files (no checksums) cannot prove their
+// integrity and are refused.
+constexpr std::int64_t kFormatVersion = 2;
 constexpr const char* kLedgerPrefix = "ledger_";
 
 // A ledger value is an exact decimal integer, optionally negative.
@@ -94,6 +99,12 @@ Checkpoint detail::read_checkpoint_header(hid_t fid, const std::string& path) {
          "not an erg checkpoint (root attribute 'format' is not \"" + std::string(kFormat) + "\")");
   }
   std::int64_t version = read_attr_i64(fid, "format_version", path);
+  if (version == 1) {
+    fail(path,
+         "checkpoint format_version 1 carries no checksums (written by an erg before checkpoints "
+         "proved their integrity); this build reads format_version " +
+             std::to_string(kFormatVersion) + " only");
+  }
   if (version != kFormatVersion) {
     fail(path, "checkpoint format_version " + std::to_string(version) +
                    " is not supported (this build reads " + std::to_string(kFormatVersion) + ")");
@@ -133,6 +144,26 @@ void detail::read_checkpoint_ledger(hid_t fid, const std::string& path, Checkpoi
     }
     c.ledger.emplace_back(std::move(name), std::move(value));
   }
+}
+
+detail::Checksums detail::checkpoint_checksums_done(Checksums cells, const Checkpoint& c) {
+  add_checkpoint_attr_checksums(cells, c, kFormat, kFormatVersion);
+  return cells;
+}
+
+void detail::write_checkpoint_checksums(hid_t fid, const Checksums& sums, const std::string& path) {
+  write_attr_str(fid, kChecksumsAttr, sums.record(), path);
+}
+
+void detail::verify_checkpoint(hid_t fid, const Checksums& computed, const std::string& path,
+                               bool all_cells) {
+  if (H5Aexists(fid, kChecksumsAttr) <= 0) {
+    H5Eclear2(H5E_DEFAULT);
+    fail(path, "checkpoint carries no checksums attribute: it cannot prove its integrity");
+  }
+  const Checksums stored = Checksums::parse(read_attr_str(fid, kChecksumsAttr, path), path);
+  const std::string diff = computed.mismatch(stored, all_cells);
+  if (!diff.empty()) fail(path, "checkpoint is corrupt: " + diff);
 }
 
 void write_checkpoint(const std::string& path, const Checkpoint& c) {
@@ -182,6 +213,12 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
     }
 
     detail::write_checkpoint_attrs(fid, c, path);
+    const TileSlab all{0, 0, c.nx, c.ny};
+    detail::write_checkpoint_checksums(
+        fid,
+        detail::checkpoint_checksums_done(
+            detail::checkpoint_cell_checksums(c, all, !c.obstacles.empty()), c),
+        path);
 
     image = detail::take_hdf5_image(file, path);
   }
@@ -211,6 +248,11 @@ Checkpoint read_checkpoint(const std::string& path) {
     c.obstacles = detail::read_dataset<float>(fid, "obstacles", H5T_NATIVE_FLOAT, grid, path);
 
   detail::read_checkpoint_ledger(fid, path, c);
+  const TileSlab all{0, 0, c.nx, c.ny};
+  detail::verify_checkpoint(fid,
+                            detail::checkpoint_checksums_done(
+                                detail::checkpoint_cell_checksums(c, all, !c.obstacles.empty()), c),
+                            path);
   return c;
 }
 

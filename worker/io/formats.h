@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "io/hdf5_util.h"
+#include "io/integrity.h"
 #include "io/io.h"
 
 namespace erg::io::detail {
@@ -70,5 +71,18 @@ Checkpoint read_checkpoint_header(hid_t file, const std::string& path);
 
 // Appends the ledgers (in creation order where tracked) to c.ledger.
 void read_checkpoint_ledger(hid_t file, const std::string& path, Checkpoint& c);
+
+// Integrity (integrity.h). The cell checksums (summed over ranks when
+// parallel) completed with those of the spec and the attributes.
+Checksums checkpoint_checksums_done(Checksums cells, const Checkpoint& c);
+// Writes the "checksums" attribute: the last thing written to a checkpoint.
+void write_checkpoint_checksums(hid_t file, const Checksums& sums, const std::string& path);
+// Fails ("checkpoint is corrupt: checksum of dataset 'sand_units' does not
+// match ...") unless the file's checksums are those computed from what was
+// read. all_cells false: the reader read part of the grid, and `computed`
+// holds the spec's and attributes' checksums only (the datasets are not
+// verified).
+void verify_checkpoint(hid_t file, const Checksums& computed, const std::string& path,
+                       bool all_cells = true);
 
 }  // namespace erg::io::detail

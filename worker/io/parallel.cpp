@@ -617,6 +617,7 @@ void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Che
   }
   bound.add_text(c.job_spec_json);
   for (const auto& [name, value] : c.ledger) bound.add_text(name + value);
+  bound.add_text(std::string(512, ' '));  // the checksums record
 
   write_atomically(co, path, fcpl.get(), bound.bytes, [&](hid_t file) {
     Hid dxpl;
@@ -635,7 +636,14 @@ void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Che
     floats("vegetation", c.vegetation);
     floats("resistance", c.resistance);
     if (has_obstacles) floats("obstacles", c.obstacles);
-    co.run([&] { detail::write_checkpoint_attrs(file, c, path); });
+    // Each rank sums its tile; the sums of all ranks are the file's (integrity.h).
+    detail::Checksums sums = detail::checkpoint_cell_checksums(c, slab, has_obstacles);
+    sums.allreduce(co.comm());
+    sums = detail::checkpoint_checksums_done(std::move(sums), c);
+    co.run([&] {
+      detail::write_checkpoint_attrs(file, c, path);
+      detail::write_checkpoint_checksums(file, sums, path);  // last
+    });
     co.agree();
   });
 }
@@ -699,6 +707,23 @@ Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, cons
 
   co.run([&] { detail::read_checkpoint_ledger(fid, path, c); });
   co.agree();
+  // Each rank sums the cells it read. When the ranks' slabs cover the grid
+  // (a resume's tiling does), the sums are the whole datasets' and are
+  // verified; a partial read verifies the spec and attributes only.
+  {
+    const TileSlab mine = slab_empty(slab) ? TileSlab{} : slab;
+    detail::Checksums sums =
+        detail::checkpoint_cell_checksums(c, mine, detail::link_exists(fid, "obstacles"));
+    sums.allreduce(co.comm());
+    unsigned long long cells = slab_empty(slab) ? 0 : slab_cells(slab);
+    MPI_Allreduce(MPI_IN_PLACE, &cells, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, co.comm());
+    const bool whole =
+        cells == static_cast<unsigned long long>(c.nx) * static_cast<unsigned long long>(c.ny);
+    if (!whole) sums = detail::Checksums{};
+    sums = detail::checkpoint_checksums_done(std::move(sums), c);
+    co.run([&] { detail::verify_checkpoint(fid, sums, path, whole); });
+    co.agree();
+  }
   co.run([&] { detail::close_checked(file, path, "cannot close checkpoint"); });
   co.agree();
   return c;

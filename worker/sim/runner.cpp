@@ -1,7 +1,6 @@
 #include "sim/runner.h"
 
 #include <google/protobuf/util/json_util.h>
-#include <google/protobuf/util/message_differencer.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -18,6 +17,7 @@
 
 #include "dist/decomposition.h"
 #include "job/worker_event.h"
+#include "sim/resume_point.h"
 #include "sim/tiling.h"
 
 namespace erg {
@@ -238,31 +238,6 @@ std::vector<SteerFile> collect_steering(const std::string& dir, const erg::v1::J
   return good;
 }
 
-// Resume: the events recorded in DIR/job.json when they extend the
-// checkpoint's (steered after the checkpoint was written).
-void adopt_recorded_events(erg::v1::JobSpec& spec, const std::string& job_json) {
-  if (!fs::exists(job_json)) return;
-  erg::v1::JobSpec recorded;
-  try {
-    std::ifstream in(job_json, std::ios::binary);
-    std::stringstream text;
-    text << in.rdbuf();
-    recorded = job::parse_json(text.str(), job_json);
-    job::apply_defaults(recorded);
-  } catch (const std::exception& e) {
-    std::cerr << "erg: ignoring the events of " << job_json << ": " << e.what() << "\n";
-    return;
-  }
-  if (recorded.events_size() <= spec.events_size()) return;
-  for (int k = 0; k < spec.events_size(); ++k)
-    if (!google::protobuf::util::MessageDifferencer::Equals(spec.events(k), recorded.events(k))) {
-      std::cerr << "erg: the events of " << job_json
-                << " do not extend the checkpoint's; continuing with the checkpoint's\n";
-      return;
-    }
-  *spec.mutable_events() = recorded.events();
-}
-
 void bcast(std::string& s, const Context& ctx) {
   long long n = static_cast<long long>(s.size());
   MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, ctx.comm);
@@ -291,22 +266,7 @@ std::string step_name(std::int64_t step) {
 }
 
 std::string latest_checkpoint(const std::string& out_dir) {
-  const fs::path d = fs::path(out_dir) / "checkpoints";
-  if (!fs::is_directory(d)) return "";
-  std::vector<std::string> all;
-  for (const auto& e : fs::directory_iterator(d))
-    if (e.path().extension() == ".h5" && e.path().filename().string().rfind("step_", 0) == 0)
-      all.push_back(e.path().string());
-  std::sort(all.rbegin(), all.rend());
-  for (const auto& p : all) {
-    try {
-      (void)io::read_checkpoint(p);
-      return p;
-    } catch (const std::exception& e) {
-      std::cerr << "erg: skipping unreadable checkpoint " << p << ": " << e.what() << "\n";
-    }
-  }
-  return "";
+  return choose_resume_point(out_dir).path;
 }
 
 int run_job(const RunConfig& cfg, MPI_Comm world) {
@@ -324,15 +284,21 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
   if (ctx.root()) {
     try {
       if (cfg.resume) {
-        checkpoint = latest_checkpoint(cfg.out_dir);
-        if (checkpoint.empty()) {
-          std::cerr << "erg: " << cfg.out_dir << " holds no checkpoint to resume from\n";
+        // The newest checkpoint that proves its integrity and agrees with
+        // job.json (sim/resume_point.h); each one passed over is named.
+        ResumePoint point = choose_resume_point(cfg.out_dir);
+        for (const std::string& why : point.skipped) std::cerr << "erg: checkpoint " << why << "\n";
+        if (point.path.empty()) {
+          std::cerr << "erg: " << cfg.out_dir
+                    << (point.skipped.empty() ? " holds no checkpoint to resume from\n"
+                                              : " holds no intact checkpoint to resume from\n");
           status = 2;
         } else {
-          erg::v1::JobSpec spec =
-              job::parse_json(io::read_checkpoint(checkpoint).job_spec_json, checkpoint);
-          job::apply_defaults(spec);
-          adopt_recorded_events(spec, cfg.out_dir + "/job.json");
+          checkpoint = point.path;
+          if (!point.skipped.empty())
+            std::cerr << "erg: resuming from " << fs::path(point.path).filename().string()
+                      << " (step " << point.step << "), the newest intact checkpoint\n";
+          erg::v1::JobSpec spec = std::move(point.spec);
           job::apply_overrides(spec, cfg.overrides);
           spec_json = job::to_json(spec);
         }
@@ -342,7 +308,9 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
         base_dir = job::base_dir_of(cfg.job_path);
         auto problems = job::validate(spec, base_dir);
         if (!problems.empty()) throw job::SpecError(problems);
-        if (!latest_checkpoint(cfg.out_dir).empty()) {
+        // Any checkpoint file, intact or not, belongs to a run.
+        std::error_code ec;
+        if (!fs::is_empty(fs::path(cfg.out_dir) / "checkpoints", ec) && !ec) {
           std::cerr << "erg: " << cfg.out_dir
                     << " already holds a run; continue it with --resume or choose another --out\n";
           status = 2;

@@ -27,10 +27,12 @@
 // the per-step control broadcast, so a step without any costs nothing more.
 // Re-running the recorded DIR_OUT/job.json reproduces the run bitwise.
 //
-// Resume: the checkpoint's spec lacks the events steered after it was
-// written. When DIR/job.json's events extend the checkpoint's (the
-// checkpoint's are a prefix), the run continues with job.json's, so the
-// steps it redoes see those events at the steps they were steered at.
+// Resume: from the newest checkpoint that proves its integrity (checksums)
+// and agrees with DIR/job.json, events included; each newer one passed over
+// is named with its reason (sim/resume_point.h). The checkpoint's spec lacks
+// the events steered after it was written: job.json's extend them, and the
+// run continues with job.json's, so the steps it redoes see those events at
+// the steps they were steered at.
 #pragma once
 
 #include <mpi.h>
@@ -59,7 +61,8 @@ struct RunConfig {
 // SIGINT/SIGTERM after a final checkpoint). Collective.
 int run_job(const RunConfig& cfg, MPI_Comm world = MPI_COMM_WORLD);
 
-// Latest readable checkpoint in DIR/checkpoints, or "" when there is none.
+// Newest checkpoint in DIR/checkpoints a resume would take (intact, agreeing
+// with DIR/job.json; sim/resume_point.h), or "" when there is none.
 std::string latest_checkpoint(const std::string& out_dir);
 
 std::string step_name(std::int64_t step);  // "step_00000042"
