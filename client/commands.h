@@ -30,6 +30,7 @@ int cmd_jobs(Remote& remote, const std::vector<std::string>& args);
 int cmd_status(Remote& remote, const std::vector<std::string>& args);
 int cmd_watch(Remote& remote, const std::vector<std::string>& args);
 int cmd_cancel(Remote& remote, const std::vector<std::string>& args);
+int cmd_resume(Remote& remote, const std::vector<std::string>& args);
 int cmd_steer(Remote& remote, const std::vector<std::string>& args);
 int cmd_fetch(Remote& remote, const std::vector<std::string>& args);
 int cmd_preview(Remote& remote, const std::vector<std::string>& args);

@@ -19,6 +19,7 @@
 //   erg status ID [--json]                  one job's record
 //   erg watch ID                            progress until the job ends
 //   erg cancel ID
+//   erg resume ID                           a FAILED job continues from its checkpoint
 //   erg steer ID EVENTS.json                timeline events applied to a running job
 //   erg fetch ID [--step S | --all] --out DIR    snapshots, resumable, sha256-checked
 //   erg preview ID [--step S] --out FILE.png
@@ -82,6 +83,7 @@ const CommandUsage kUsage[] = {
     {"watch",
      "  erg watch ID         progress until the job ends (exit 0, 1 FAILED, 3 CANCELLED)\n"},
     {"cancel", "  erg cancel ID\n"},
+    {"resume", "  erg resume ID        a FAILED job continues from its newest intact checkpoint\n"},
     {"steer", "  erg steer ID EVENTS.json   apply an erg.v1.Event (or a JSON array) now\n"},
     {"fetch", "  erg fetch ID [--step S | --all] --out DIR   snapshots (latest by default)\n"},
     {"preview", "  erg preview ID [--step S] --out FILE.png\n"},
@@ -108,9 +110,9 @@ using RemoteCommand = int (*)(Remote&, const std::vector<std::string>&);
 
 const std::map<std::string, RemoteCommand>& remote_commands() {
   static const std::map<std::string, RemoteCommand> m = {
-      {"submit", cmd_submit}, {"jobs", cmd_jobs},      {"status", cmd_status},
-      {"watch", cmd_watch},   {"cancel", cmd_cancel},  {"steer", cmd_steer},
-      {"fetch", cmd_fetch},   {"preview", cmd_preview}};
+      {"submit", cmd_submit}, {"jobs", cmd_jobs},       {"status", cmd_status},
+      {"watch", cmd_watch},   {"cancel", cmd_cancel},   {"steer", cmd_steer},
+      {"fetch", cmd_fetch},   {"preview", cmd_preview}, {"resume", cmd_resume}};
   return m;
 }
 

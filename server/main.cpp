@@ -4,6 +4,8 @@
 //        [--cancel-grace S] [--max-job-disk BYTES] [--tenant-cell-steps N]
 //        [--worker PATH] [--mpirun PATH] [--max-attempts N]
 //        [--http-timeout S] [--http-per-address N] [--http-workers N]
+//        [--min-free-disk BYTES] [--max-job-memory BYTES] [--max-threads N]
+//        [--worker-retries N]
 //        [--launcher local|slurm] [--slurm-template FILE] [--slurm-partition P]
 //        [--slurm-account A] [--slurm-time-limit MINUTES] [--slurm-gpus-per-node G]
 //        [--slurm-signal SECONDS]
@@ -49,6 +51,12 @@ void usage() {
          "            [--http-per-address N (16): HTTP connections open at once per client "
          "address]\n"
          "            [--http-workers N (4): threads answering complete HTTP requests]\n"
+         "            [--max-job-memory BYTES (this machine's memory): jobs whose estimate\n"
+         "             (184 bytes per cell) is above are refused] [--max-threads N (cores)]\n"
+         "            [--worker-retries N (3): restarts, from the newest intact checkpoint,\n"
+         "             of a job whose worker died (killed, crashed)]\n"
+         "            [--min-free-disk BYTES (268435456): below this much free space in\n"
+         "             --data, new jobs are refused (RESOURCE_EXHAUSTED) and queued ones wait]\n"
          "            [--launcher local|slurm (local)]\n"
          "  Slurm:     [--slurm-template FILE (deploy/slurm/ergd-job.sbatch)]\n"
          "            [--slurm-partition P] [--slurm-account A] [--slurm-time-limit MINUTES (60)]\n"
@@ -134,6 +142,14 @@ int main(int argc, char** argv) {
         cfg.max_job_disk_bytes = static_cast<std::int64_t>(number(0, 1e18));
       else if (a == "--tenant-cell-steps")
         cfg.tenant_cell_steps = number(0, 1e30);
+      else if (a == "--max-job-memory")
+        cfg.max_job_memory_bytes = static_cast<std::int64_t>(number(1, 1e18));
+      else if (a == "--max-threads")
+        cfg.max_threads = static_cast<int>(number(1, 1e6));
+      else if (a == "--worker-retries")
+        cfg.worker_retries = static_cast<int>(number(0, 1000));
+      else if (a == "--min-free-disk")
+        cfg.min_free_disk_bytes = static_cast<std::int64_t>(number(0, 1e18));
       else if (a == "--max-attempts")
         cfg.max_attempts = static_cast<int>(number(1, 1000));
       else if (a == "--http-timeout")
@@ -201,7 +217,8 @@ int main(int argc, char** argv) {
     fs::create_directories(data);
     data = fs::absolute(data).string();  // workers and batch scripts run elsewhere
     erg::server::Tokens tokens(tokens_path);
-    erg::server::JobStore store((fs::path(data) / "ergd.sqlite").string());
+    erg::server::JobStore store((fs::path(data) / "ergd.sqlite").string(),
+                                (fs::path(data) / "ergd.reserve").string());
     erg::server::Metrics metrics;
     std::unique_ptr<erg::server::Launcher> launcher;
     if (launcher_kind == "slurm") {

@@ -1,6 +1,7 @@
 // erg jobs [--state S] [--all-pages]
 // erg status ID [--json]
 // erg cancel ID
+// erg resume ID
 // erg steer ID EVENTS.json
 #include <google/protobuf/util/json_util.h>
 
@@ -168,6 +169,24 @@ int cmd_cancel(Remote& remote, const std::vector<std::string>& args) {
                    "erg watch "
                 << j.id() << " follows it)\n";
   }
+  return kExitOk;
+}
+
+int cmd_resume(Remote& remote, const std::vector<std::string>& args) {
+  if (args.size() != 1 || (args[0].size() > 1 && args[0][0] == '-'))
+    return usage_error("resume", "expected one job id");
+  erg::v1::ResumeJobRequest req;
+  req.set_id(args[0]);
+  erg::v1::Job j;
+  grpc::ClientContext ctx;
+  remote.prepare(ctx, kUnaryDeadline);
+  const grpc::Status status = remote.stub().ResumeJob(&ctx, req, &j);
+  if (!status.ok()) return remote.fail("resume", status);
+  std::cout << state_name(j.state()) << "\n";
+  std::cerr << "erg: job " << j.id()
+            << " is queued again; its worker continues from its newest intact checkpoint (erg "
+               "watch "
+            << j.id() << " follows it)\n";
   return kExitOk;
 }
 

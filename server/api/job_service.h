@@ -32,6 +32,8 @@ class JobService final : public erg::v1::JobService::Service {
                           erg::v1::Preview*) override;
   grpc::Status SteerJob(grpc::ServerContext*, const erg::v1::SteerJobRequest*,
                         erg::v1::SteerJobResponse*) override;
+  grpc::Status ResumeJob(grpc::ServerContext*, const erg::v1::ResumeJobRequest*,
+                         erg::v1::Job*) override;
 
  private:
   template <class F>

@@ -1,16 +1,20 @@
 #include "scheduler/job_manager.h"
 
 #include <google/protobuf/util/json_util.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <deque>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <random>
 #include <sstream>
+#include <system_error>
 
 #include "auth/request_checks.h"
 #include "job/spec.h"
@@ -35,6 +39,40 @@ std::int64_t now_ms() {
       .count();
 }
 
+// The memory this machine lets ergd's workers have: physical memory, or the
+// cgroup's limit when lower (a container, a systemd MemoryMax=).
+std::int64_t machine_memory_bytes() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+  std::int64_t mem = pages > 0 && page > 0 ? static_cast<std::int64_t>(pages) * page : 0;
+  for (const char* path :
+       {"/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"}) {
+    std::ifstream f(path);
+    std::string v;
+    if (f >> v && !v.empty() && v != "max") {
+      try {
+        const std::int64_t lim = std::stoll(v);
+        if (lim > 0 && (mem == 0 || lim < mem)) mem = lim;
+      } catch (...) {
+      }
+    }
+  }
+  return mem;
+}
+
+// "exited with code 3", "was killed by signal 9 (exit code 137)".
+std::string exit_text(int code) {
+  if (code > 128 && code < 128 + 65)
+    return "was killed by signal " + std::to_string(code - 128) + " (exit code " +
+           std::to_string(code) + ")";
+  return "exited with code " + std::to_string(code);
+}
+
+std::string gib(double bytes) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.3g GiB", bytes / double(1ull << 30));
+  return buf;
+}
+
 std::string new_job_id() {
   static std::mutex mu;
   static std::mt19937_64 rng{std::random_device{}()};
@@ -52,9 +90,27 @@ void write_file_atomic(const std::string& path, const std::string& text) {
     std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
     f << text;
     f.flush();
-    if (!f) throw std::runtime_error("cannot write " + tmp);
+    if (!f) {
+      const int err = errno;
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw std::system_error(err ? err : EIO, std::generic_category(), "cannot write " + tmp);
+    }
   }
   fs::rename(tmp, path);
+}
+
+// Whether an error message says the disk is full.
+bool says_full(const std::string& m) {
+  return m.find("No space left on device") != std::string::npos ||
+         m.find("ENOSPC") != std::string::npos || m.find("disk is full") != std::string::npos ||
+         m.find("Disk quota exceeded") != std::string::npos;
+}
+
+// A failure reason that names ENOSPC when the cause was a full disk.
+std::string with_enospc(const std::string& reason) {
+  if (!says_full(reason) || reason.find("ENOSPC") != std::string::npos) return reason;
+  return reason + " (ENOSPC: the data directory's file system is full)";
 }
 
 std::int64_t dir_bytes(const fs::path& dir) {
@@ -74,6 +130,9 @@ JobManager::JobManager(JobStore& store, Launcher& launcher, Metrics& metrics, Ma
     : store_(store), launcher_(launcher), metrics_(metrics), cfg_(std::move(cfg)) {
   if (cfg_.max_ranks <= 0)
     cfg_.max_ranks = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (cfg_.max_threads <= 0)
+    cfg_.max_threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  if (cfg_.max_job_memory_bytes <= 0) cfg_.max_job_memory_bytes = machine_memory_bytes();
   fs::create_directories(fs::path(cfg_.data_dir) / "jobs");
 }
 
@@ -162,9 +221,10 @@ Job JobManager::submit(const std::string& tenant, const erg::v1::SubmitJobReques
   if (res.ranks() < 0 || res.ranks() > cfg_.max_ranks)
     problems.push_back("resources.ranks: " + std::to_string(res.ranks()) + " is out of range [0, " +
                        std::to_string(cfg_.max_ranks) + "] (ergd --max-ranks)");
-  if (res.threads_per_rank() < 0 || res.threads_per_rank() > 1024)
+  if (res.threads_per_rank() < 0 || res.threads_per_rank() > cfg_.max_threads)
     problems.push_back("resources.threads_per_rank: " + std::to_string(res.threads_per_rank()) +
-                       " is out of range [0, 1024]");
+                       " is out of range [0, " + std::to_string(cfg_.max_threads) +
+                       "] (this machine's cores, ergd --max-threads)");
   auto slurm_name = [&](const char* field, const std::string& v) {
     const bool ok = v.size() <= 64 && v.find_first_not_of(
                                           "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmn"
@@ -195,6 +255,22 @@ Job JobManager::submit(const std::string& tenant, const erg::v1::SubmitJobReques
     for (const auto& p : problems) msg += (msg.empty() ? "" : "\n") + p;
     throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, msg);
   }
+  {
+    // A job that cannot fit is refused now, not left to die of bad_alloc.
+    const double cells =
+        static_cast<double>(spec.domain().nx()) * static_cast<double>(spec.domain().ny());
+    const double estimate = cells * static_cast<double>(kJobBytesPerCell);
+    if (cfg_.max_job_memory_bytes > 0 &&
+        estimate > static_cast<double>(cfg_.max_job_memory_bytes)) {
+      char msg[400];
+      std::snprintf(msg, sizeof msg,
+                    "domain: the job's memory estimate is %s (%lld bytes per cell x %.0f cells), "
+                    "more than the %s a job may use here (ergd --max-job-memory)",
+                    gib(estimate).c_str(), static_cast<long long>(kJobBytesPerCell), cells,
+                    gib(static_cast<double>(cfg_.max_job_memory_bytes)).c_str());
+      throw ApiError(grpc::StatusCode::RESOURCE_EXHAUSTED, msg);
+    }
+  }
 
   Job job;
   job.set_id(new_job_id());
@@ -222,17 +298,43 @@ Job JobManager::submit(const std::string& tenant, const erg::v1::SubmitJobReques
       throw ApiError(grpc::StatusCode::RESOURCE_EXHAUSTED, msg);
     }
   }
-  const std::string dir = job_dir(job.id());
-  fs::create_directories(dir + "/steer");
-  write_file_atomic(dir + "/job.json", job::to_json(spec));
-  auto [stored, created] = store_.insert(job);
-  if (!created) {
-    fs::remove_all(dir);  // a concurrent submit with the same key won
-    return stored;
+  if (disk_low_locked()) {
+    throw ApiError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                   "the data directory has " + std::to_string(free_disk_bytes()) +
+                       " bytes free, less than the reserve of " +
+                       std::to_string(cfg_.min_free_disk_bytes) +
+                       " (ergd --min-free-disk): no new job until space is freed");
   }
-  JobEvent ev;
-  ev.set_state_changed(erg::v1::QUEUED);
-  event_locked(stored, ev);
+  const std::string dir = job_dir(job.id());
+  // All or nothing: a job is in the store with its directory, or neither.
+  Job stored;
+  try {
+    fs::create_directories(dir + "/steer");
+    write_file_atomic(dir + "/job.json", job::to_json(spec));
+    auto [s, created] = store_.insert(job);
+    if (!created) {
+      fs::remove_all(dir);  // a concurrent submit with the same key won
+      return s;
+    }
+    stored = s;
+  } catch (const std::exception& e) {
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+    const std::string m = e.what();
+    if (says_full(m))
+      throw ApiError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                     "the data directory is full: " + with_enospc(m));
+    throw;
+  }
+  try {
+    JobEvent ev;
+    ev.set_state_changed(erg::v1::QUEUED);
+    event_locked(stored, ev);
+  } catch (const std::exception& e) {
+    // The job is stored (QUEUED); only its first event is missing.
+    std::cerr << "ergd: job " << stored.id() << ": cannot record its QUEUED event: " << e.what()
+              << std::endl;
+  }
   dirty_ = true;
   cv_.notify_all();
   return stored;
@@ -242,6 +344,8 @@ Job JobManager::get(const std::string& tenant, const std::string& id) {
   std::lock_guard lock(mu_);
   if (auto it = running_.find(id); it != running_.end() && it->second.job.tenant() == tenant)
     return it->second.job;
+  if (auto it = unsaved_.find(id); it != unsaved_.end() && it->second.tenant() == tenant)
+    return it->second;
   auto job = store_.get(id);
   // Another tenant's job is reported exactly like a job that does not exist.
   if (!job || job->tenant() != tenant)
@@ -253,8 +357,12 @@ std::vector<Job> JobManager::list(const std::string& tenant, int state, std::int
                                   int limit, std::int64_t* last_seq) {
   auto jobs = store_.list(tenant, state, before_seq, limit, last_seq);
   std::lock_guard lock(mu_);
-  for (auto& j : jobs)
-    if (auto it = running_.find(j.id()); it != running_.end()) j = it->second.job;
+  for (auto& j : jobs) {
+    if (auto it = running_.find(j.id()); it != running_.end())
+      j = it->second.job;
+    else if (auto u = unsaved_.find(j.id()); u != unsaved_.end())
+      j = u->second;
+  }
   return jobs;
 }
 
@@ -280,6 +388,45 @@ Job JobManager::cancel(const std::string& tenant, const std::string& id) {
     return *fresh;
   }
   return fresh ? *fresh : job;
+}
+
+Job JobManager::resume(const std::string& tenant, const std::string& id) {
+  (void)get(tenant, id);  // NOT_FOUND for another tenant's
+  std::lock_guard lock(mu_);
+  if (running_.count(id) || unsaved_.count(id))
+    throw ApiError(grpc::StatusCode::FAILED_PRECONDITION,
+                   "job " + id + " is not FAILED; only a FAILED job can be resumed");
+  auto job = store_.get(id);
+  if (!job || job->tenant() != tenant)
+    throw ApiError(grpc::StatusCode::NOT_FOUND, "job " + id + " not found");
+  if (job->state() != erg::v1::FAILED)
+    throw ApiError(grpc::StatusCode::FAILED_PRECONDITION, "job " + id + " is " +
+                                                              erg::v1::JobState_Name(job->state()) +
+                                                              "; only a FAILED job can be resumed");
+  bool has_checkpoint = false;
+  std::error_code ec;
+  for (auto it = fs::directory_iterator(fs::path(job_dir(id)) / "run" / "checkpoints", ec);
+       !ec && it != fs::end(it); it.increment(ec))
+    if (it->path().extension() == ".h5") has_checkpoint = true;
+  if (!has_checkpoint)
+    throw ApiError(grpc::StatusCode::FAILED_PRECONDITION,
+                   "job " + id +
+                       " has no checkpoint to resume from (it failed before its first; "
+                       "submit it again)");
+  const std::string was = job->failure_reason();
+  job->clear_failure_reason();
+  job->clear_log_tail();
+  job->set_finished_unix_ms(0);
+  job->set_worker_retries(0);
+  job->clear_launcher_id();
+  set_state_locked(
+      *job, erg::v1::QUEUED,
+      "resumed by its tenant (erg resume): queued again; the worker continues from its "
+      "newest intact checkpoint (it had failed: " +
+          was.substr(0, 300) + ")");
+  dirty_ = true;
+  cv_.notify_all();
+  return *job;
 }
 
 erg::v1::SteerJobResponse JobManager::steer(const std::string& tenant, const std::string& id,
@@ -374,10 +521,81 @@ LaunchRequest JobManager::request_for(const Job& job) const {
 }
 
 LaunchCallbacks JobManager::callbacks(const std::string& id) {
-  return {
-      [this, id](const erg::v1::WorkerEvent& ev, std::int64_t offset) { on_event(id, ev, offset); },
-      [this, id](int code) { on_exit(id, code); },
-      [this, id](const std::string& state) { on_state(id, state); }};
+  return {[this, id](const erg::v1::WorkerEvent& ev, std::int64_t offset) {
+            guarded(id, "a worker event", [&] { on_event(id, ev, offset); });
+          },
+          [this, id](int code) { guarded(id, "the worker's exit", [&] { on_exit(id, code); }); },
+          [this, id](const std::string& state) {
+            guarded(id, "a scheduler state", [&] { on_state(id, state); });
+          }};
+}
+
+template <class F>
+void JobManager::guarded(const std::string& id, const char* what, F&& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    std::cerr << "ergd: job " << id << ": cannot record " << what << ": " << e.what() << std::endl;
+    try {
+      std::lock_guard lock(mu_);
+      store_failed_locked(id, e.what());
+    } catch (...) {
+    }
+  } catch (...) {
+    std::cerr << "ergd: job " << id << ": cannot record " << what << std::endl;
+  }
+}
+
+// The store refused a write for a running job: the job fails (its record
+// would otherwise fall behind its worker) and its worker is stopped.
+void JobManager::store_failed_locked(const std::string& id, const std::string& why) {
+  auto it = running_.find(id);
+  if (it == running_.end()) return;
+  Running& r = it->second;
+  if (r.failure.empty()) r.failure = with_enospc("ergd cannot record the job: " + why);
+  if (r.stop_sent_at == 0) {
+    r.stop_sent_at = mono_s();
+    launcher_.stop(r.launcher_id, false);
+  }
+}
+
+std::int64_t JobManager::free_disk_bytes() const {
+  struct statvfs v {};
+  if (::statvfs(cfg_.data_dir.c_str(), &v) != 0) return -1;
+  return static_cast<std::int64_t>(v.f_bavail) * static_cast<std::int64_t>(v.f_frsize);
+}
+
+bool JobManager::disk_low_locked() {
+  const double now = mono_s();
+  if (now - last_disk_probe_ >= 2.0) {
+    last_disk_probe_ = now;
+    const std::int64_t free = free_disk_bytes();
+    const bool low = free >= 0 && free < cfg_.min_free_disk_bytes;
+    if (low != disk_low_)
+      std::cerr << "ergd: the data directory has " << free
+                << " bytes free: " << (low ? "below" : "back above") << " the reserve of "
+                << cfg_.min_free_disk_bytes << " bytes (--min-free-disk); "
+                << (low ? "refusing new jobs, queued jobs wait" : "accepting jobs again")
+                << std::endl;
+    disk_low_ = low;
+    if (!low) store_.restore_reserve();
+  }
+  return disk_low_;
+}
+
+void JobManager::flush_unsaved_locked() {
+  for (auto it = unsaved_.begin(); it != unsaved_.end();) {
+    try {
+      store_.update(it->second);
+      JobEvent ev;
+      ev.set_state_changed(it->second.state());
+      event_locked(it->second, ev);
+      std::cerr << "ergd: job " << it->first << ": its state is stored again" << std::endl;
+      it = unsaved_.erase(it);
+    } catch (const std::exception&) {
+      ++it;  // still no room; the job is served from memory meanwhile
+    }
+  }
 }
 
 void JobManager::launch_locked(Job job) {
@@ -404,6 +622,7 @@ void JobManager::launch_locked(Job job) {
     set_state_locked(job, erg::v1::FAILED);
     return;
   }
+  r.resumed = has_checkpoint;
   job.set_launcher_id(r.launcher_id);
   job.set_launcher(launcher_.name());
   job.set_launcher_offset(0);
@@ -457,6 +676,14 @@ void JobManager::on_event(const std::string& id, const erg::v1::WorkerEvent& ev,
       if (r.job.state() == erg::v1::QUEUED) set_state_locked(r.job, erg::v1::RUNNING);
       p.set_step(ev.step());
       p.set_total_steps(ev.start().steps());
+      if (r.resumed) {
+        // Which checkpoint the worker took (the newest intact one): its step.
+        JobEvent m;
+        m.set_message("attempt " + std::to_string(r.job.attempts()) +
+                      ": the worker resumed from its checkpoint of step " +
+                      std::to_string(p.step()));
+        event_locked(r.job, m);
+      }
       break;
     case Kind::kProgress:
     case Kind::kDone: {
@@ -536,7 +763,7 @@ void JobManager::finish_locked(Running& r, JobState state, const std::string& re
   job.set_finished_unix_ms(now_ms());
   job.set_disk_bytes(dir_bytes(job_dir(job.id())));
   if (state == erg::v1::FAILED) {
-    job.set_failure_reason(reason);
+    job.set_failure_reason(with_enospc(reason));
     job.set_log_tail(log_tail(job.id(), 20));
   }
   metrics_.remove_rate(job.id(), job.tenant());
@@ -548,31 +775,65 @@ void JobManager::on_exit(const std::string& id, int code) {
   auto it = running_.find(id);
   if (it == running_.end()) return;
   Running& r = it->second;
-  if (code == 0 && r.failure.empty()) {
-    finish_locked(r, erg::v1::SUCCEEDED, "");
-  } else if (r.cancel_requested) {
-    finish_locked(r, erg::v1::CANCELLED, "");
-  } else if (r.stop_for_shutdown) {
-    store_.update(r.job);  // stays RUNNING: the next ergd resumes it
-    metrics_.remove_rate(id, r.job.tenant());
-  } else if (r.stopped_by_signal && r.failure.empty() && r.job.attempts() < cfg_.max_attempts) {
-    // Stopped from outside after writing a checkpoint (the batch system's
-    // walltime warning, preemption): queue it again; it resumes.
-    metrics_.remove_rate(id, r.job.tenant());
-    r.job.clear_launcher_id();
-    set_state_locked(r.job, erg::v1::QUEUED,
-                     "the worker was stopped by a signal at step " +
-                         std::to_string(r.job.progress().step()) +
-                         " after writing a checkpoint (walltime or preemption): it resumes");
-  } else if (r.stopped_by_signal && r.failure.empty()) {
-    finish_locked(r, erg::v1::FAILED,
-                  "stopped by a signal " + std::to_string(r.job.attempts()) +
-                      " times; ergd gives up after --max-attempts " +
-                      std::to_string(cfg_.max_attempts));
-  } else {
-    finish_locked(
-        r, erg::v1::FAILED,
-        !r.failure.empty() ? r.failure : "the worker exited with code " + std::to_string(code));
+  // The final state is served from memory when the store cannot take it
+  // (a full disk), and stored as soon as it can (flush_unsaved_locked).
+  const auto finish = [&](JobState state, const std::string& reason) {
+    try {
+      finish_locked(r, state, reason);
+    } catch (const std::exception& e) {
+      std::cerr << "ergd: job " << id << ": cannot store its end (" << e.what()
+                << "); serving it from memory until the store takes it" << std::endl;
+      r.job.set_state(state);
+      if (state == erg::v1::FAILED && r.job.failure_reason().empty())
+        r.job.set_failure_reason(with_enospc(reason));
+      unsaved_[id] = r.job;
+    }
+  };
+  try {
+    if (code == 0 && r.failure.empty()) {
+      finish(erg::v1::SUCCEEDED, "");
+    } else if (r.cancel_requested) {
+      finish(erg::v1::CANCELLED, "");
+    } else if (r.stop_for_shutdown) {
+      store_.update(r.job);  // stays RUNNING: the next ergd resumes it
+      metrics_.remove_rate(id, r.job.tenant());
+    } else if (r.stopped_by_signal && r.failure.empty() && r.job.attempts() < cfg_.max_attempts) {
+      // Stopped from outside after writing a checkpoint (the batch system's
+      // walltime warning, preemption): queue it again; it resumes.
+      metrics_.remove_rate(id, r.job.tenant());
+      r.job.clear_launcher_id();
+      set_state_locked(r.job, erg::v1::QUEUED,
+                       "the worker was stopped by a signal at step " +
+                           std::to_string(r.job.progress().step()) +
+                           " after writing a checkpoint (walltime or preemption): it resumes");
+    } else if (r.stopped_by_signal && r.failure.empty()) {
+      finish(erg::v1::FAILED, "stopped by a signal " + std::to_string(r.job.attempts()) +
+                                  " times; ergd gives up after --max-attempts " +
+                                  std::to_string(cfg_.max_attempts));
+    } else if (r.failure.empty() && code != 2 && r.job.worker_retries() < cfg_.worker_retries) {
+      // The worker died without saying why (killed, crashed, a rank lost):
+      // not the job's fault, so it runs again from its newest intact
+      // checkpoint (the worker verifies it and names the one it takes). Exit
+      // code 2 is a bad job or no usable checkpoint: retrying cannot help.
+      metrics_.remove_rate(id, r.job.tenant());
+      r.job.set_worker_retries(r.job.worker_retries() + 1);
+      r.job.clear_launcher_id();
+      set_state_locked(r.job, erg::v1::QUEUED,
+                       "the worker died at step " + std::to_string(r.job.progress().step()) + " (" +
+                           exit_text(code) + "): retry " + std::to_string(r.job.worker_retries()) +
+                           " of " + std::to_string(cfg_.worker_retries) +
+                           " (ergd --worker-retries), from its newest intact checkpoint");
+    } else {
+      std::string why = !r.failure.empty() ? r.failure : "the worker " + exit_text(code);
+      if (r.failure.empty() && code != 2 && cfg_.worker_retries > 0)
+        why += " (after " + std::to_string(r.job.worker_retries()) +
+               " retries, ergd --worker-retries; erg resume " + id + " continues it)";
+      finish(erg::v1::FAILED, why);
+    }
+  } catch (const std::exception& e) {
+    // A requeue that could not be stored: the job stays as the store has it
+    // (RUNNING), and the next ergd start resumes it.
+    std::cerr << "ergd: job " << id << ": cannot store its next state: " << e.what() << std::endl;
   }
   running_.erase(it);
   dirty_ = true;
@@ -637,50 +898,78 @@ void JobManager::scheduler_loop() {
         }
       }
     }
-    if (dirty_) {
-      dirty_ = false;
-      start_next_locked();
-    }
-    if (now - last_metrics >= 1.0) {
+    // Nothing thrown here may end the scheduler (or ergd): a store that
+    // cannot write leaves the queue as it is, and the next round tries again.
+    try {
+      if (!unsaved_.empty() && now - last_metrics >= 1.0) flush_unsaved_locked();
+      if (dirty_ && !disk_low_locked()) {
+        dirty_ = false;
+        start_next_locked();
+      } else if (dirty_ || now - last_disk_probe_ >= 2.0) {
+        (void)disk_low_locked();  // notices when space comes back
+      }
+      if (now - last_metrics >= 1.0) {
+        last_metrics = now;
+        refresh_metrics();
+      }
+    } catch (const std::exception& e) {
+      std::cerr << "ergd: scheduler: " << e.what() << std::endl;
+      dirty_ = true;
       last_metrics = now;
-      refresh_metrics();
     }
   }
 }
 
+void JobManager::recover(Job job) {
+  if (job.launcher_id().empty()) return;  // never launched: the queue takes it
+  std::lock_guard lock(mu_);
+  if (launcher_.reattachable()) {
+    // Slurm jobs outlive ergd: follow them again from where we left off.
+    Running& r = running_[job.id()];
+    r.job = job;
+    r.launcher_id = job.launcher_id();
+    r.last_saved = mono_s();
+    launcher_.attach(job.launcher_id(), request_for(job), job.launcher_offset(),
+                     callbacks(job.id()));
+    JobEvent m;
+    m.set_message("ergd restarted: following " + launcher_.name() + " job " + job.launcher_id() +
+                  " again");
+    event_locked(job, m);
+    return;
+  }
+  // Local workers got SIGTERM when the old ergd died (or were stopped at
+  // its shutdown) and checkpointed. Wait for any still writing, then
+  // queue the job again ahead of newer jobs (same seq); it resumes.
+  if (launcher_.alive(job.launcher_id())) {
+    launcher_.stop(job.launcher_id(), false);
+    const double t0 = mono_s();
+    while (launcher_.alive(job.launcher_id())) {
+      if (mono_s() - t0 > cfg_.cancel_grace_s) launcher_.stop(job.launcher_id(), true);
+      ::usleep(100 * 1000);
+    }
+  }
+  job.clear_launcher_id();
+  set_state_locked(job, erg::v1::QUEUED,
+                   "ergd restarted while the job ran: it resumes from its last checkpoint");
+}
+
 void JobManager::start() {
-  // Jobs a previous ergd had launched (a launcher id, not final).
-  for (Job job : store_.in_states({erg::v1::QUEUED, erg::v1::RUNNING})) {
-    if (job.launcher_id().empty()) continue;  // never launched: the queue takes it
-    std::lock_guard lock(mu_);
-    if (launcher_.reattachable()) {
-      // Slurm jobs outlive ergd: follow them again from where we left off.
-      Running& r = running_[job.id()];
-      r.job = job;
-      r.launcher_id = job.launcher_id();
-      r.last_saved = mono_s();
-      launcher_.attach(job.launcher_id(), request_for(job), job.launcher_offset(),
-                       callbacks(job.id()));
-      JobEvent m;
-      m.set_message("ergd restarted: following " + launcher_.name() + " job " + job.launcher_id() +
-                    " again");
-      event_locked(job, m);
-      continue;
+  // Jobs a previous ergd had launched (a launcher id, not final). A store
+  // that cannot write (ergd started on a full disk) fails none of this:
+  // each job is retried by the queue, and ergd serves reads meanwhile.
+  std::vector<Job> left;
+  try {
+    left = store_.in_states({erg::v1::QUEUED, erg::v1::RUNNING});
+  } catch (const std::exception& e) {
+    std::cerr << "ergd: cannot list the jobs to resume: " << e.what() << std::endl;
+  }
+  for (Job job : left) {
+    try {
+      recover(job);
+    } catch (const std::exception& e) {
+      std::cerr << "ergd: job " << job.id() << ": cannot resume it now (" << e.what()
+                << "); it resumes at the next start of ergd" << std::endl;
     }
-    // Local workers got SIGTERM when the old ergd died (or were stopped at
-    // its shutdown) and checkpointed. Wait for any still writing, then
-    // queue the job again ahead of newer jobs (same seq); it resumes.
-    if (launcher_.alive(job.launcher_id())) {
-      launcher_.stop(job.launcher_id(), false);
-      const double t0 = mono_s();
-      while (launcher_.alive(job.launcher_id())) {
-        if (mono_s() - t0 > cfg_.cancel_grace_s) launcher_.stop(job.launcher_id(), true);
-        ::usleep(100 * 1000);
-      }
-    }
-    job.clear_launcher_id();
-    set_state_locked(job, erg::v1::QUEUED,
-                     "ergd restarted while the job ran: it resumes from its last checkpoint");
   }
   {
     std::lock_guard lock(mu_);

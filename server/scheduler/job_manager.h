@@ -52,8 +52,24 @@ struct ManagerConfig {
   // A worker stopped by a signal after a checkpoint (Slurm's walltime
   // warning, preemption) is started again, at most this many times in all.
   int max_attempts = 10;
+  // A worker that dies (killed by a signal it was not sent by ergd, or a
+  // crash: no "failed" event) is started again from its newest intact
+  // checkpoint, at most this many times in a row (0: never).
+  int worker_retries = 3;
   int max_time_limit_minutes = 7 * 24 * 60;  // Resources.time_limit_minutes
+  // Submissions are refused (RESOURCE_EXHAUSTED), and queued jobs wait,
+  // while the data directory's file system has less free space than this.
+  std::int64_t min_free_disk_bytes = std::int64_t{256} << 20;
+  // A job whose memory estimate (kJobBytesPerCell x cells) is above this is
+  // refused at submission; 0: this machine's memory (or its cgroup's limit).
+  std::int64_t max_job_memory_bytes = 0;
+  int max_threads = 0;  // Resources.threads_per_rank at most; 0: this machine's cores
 };
+
+// What a running worker holds per cell of its domain, all ranks together:
+// the largest peak measured (README "Memory": 184 bytes per cell at 4096²,
+// 161 at 11776², CPU backend, snapshots and checkpoints included).
+inline constexpr std::int64_t kJobBytesPerCell = 184;
 
 class JobManager {
  public:
@@ -70,6 +86,9 @@ class JobManager {
   erg::v1::Job submit(const std::string& tenant, const erg::v1::SubmitJobRequest& req);
   erg::v1::Job get(const std::string& tenant, const std::string& id);  // NOT_FOUND
   erg::v1::Job cancel(const std::string& tenant, const std::string& id);
+  // A FAILED job with a checkpoint is queued again and resumes from it
+  // (FAILED_PRECONDITION otherwise).
+  erg::v1::Job resume(const std::string& tenant, const std::string& id);
   erg::v1::SteerJobResponse steer(const std::string& tenant, const std::string& id,
                                   const std::vector<erg::v1::Event>& events);
   std::vector<erg::v1::Job> list(const std::string& tenant, int state, std::int64_t before_seq,
@@ -87,6 +106,7 @@ class JobManager {
     bool cancel_requested = false;
     bool stop_for_shutdown = false;
     bool stopped_by_signal = false;  // the worker said "stopped" (checkpoint written)
+    bool resumed = false;            // started with --resume (a checkpoint existed)
     double stop_sent_at = 0;         // monotonic seconds; 0: not asked to stop
     double last_saved = 0;
     double last_progress_event = 0;
@@ -97,6 +117,7 @@ class JobManager {
   };
 
   void scheduler_loop();
+  void recover(erg::v1::Job job);  // start(): one job a previous ergd had launched
   void start_next_locked();
   void launch_locked(erg::v1::Job job);
   void on_event(const std::string& id, const erg::v1::WorkerEvent& ev, std::int64_t offset);
@@ -108,6 +129,15 @@ class JobManager {
   void event_locked(const erg::v1::Job& job, erg::v1::JobEvent ev);
   void set_state_locked(erg::v1::Job& job, erg::v1::JobState s, const std::string& note = "");
   void refresh_metrics();
+  // A callback of the launcher, run so that nothing escapes to its thread: a
+  // store write that fails fails the job (and stops its worker), never ergd.
+  template <class F>
+  void guarded(const std::string& id, const char* what, F&& f);
+  void store_failed_locked(const std::string& id, const std::string& why);
+  // Free bytes of the data directory's file system (statvfs; -1: unknown).
+  std::int64_t free_disk_bytes() const;
+  bool disk_low_locked();  // below cfg_.min_free_disk_bytes (checked every 2 s)
+  void flush_unsaved_locked();
   double cell_steps_of(const erg::v1::Job& job) const;
   std::string log_tail(const std::string& id, int lines) const;
 
@@ -118,6 +148,11 @@ class JobManager {
   std::mutex mu_;
   std::condition_variable cv_;  // scheduler wake-ups, steering replies
   std::map<std::string, Running> running_;
+  // Jobs whose last change could not be stored (a full disk): served from
+  // here and written again every 2 s until the store takes them.
+  std::map<std::string, erg::v1::Job> unsaved_;
+  double last_disk_probe_ = -1e9;
+  bool disk_low_ = false;
   std::atomic<bool> stopping_{false};
   bool dirty_ = true;  // the queue or the running set changed: try to start jobs
   std::thread scheduler_;

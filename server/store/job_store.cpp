@@ -1,11 +1,36 @@
 #include "store/job_store.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
+#include <cstdio>
+#include <cstring>
 #include <stdexcept>
 
 namespace erg::server {
 
 namespace {
+
+constexpr off_t kReserveBytes = 4 << 20;
+
+// Whether the connection's last error was the disk being full.
+bool is_full(sqlite3* db, int rc) {
+  const int primary = rc & 0xff;
+  if (primary == SQLITE_FULL) return true;
+  const int err = sqlite3_system_errno(db);
+  return (primary == SQLITE_IOERR || primary == SQLITE_CANTOPEN) &&
+         (err == ENOSPC || err == EDQUOT);
+}
+
+[[noreturn]] void throw_store(sqlite3* db, int rc, const std::string& what) {
+  const bool full = is_full(db, rc);
+  std::string msg = std::string("sqlite: ") + sqlite3_errmsg(db) + what;
+  if (full) msg += " (ENOSPC: the data directory's file system is full)";
+  throw StoreError(msg, full);
+}
 
 std::int64_t now_ms() {
   return std::chrono::duration_cast<std::chrono::milliseconds>(
@@ -17,8 +42,8 @@ std::int64_t now_ms() {
 class Stmt {
  public:
   Stmt(sqlite3* db, const char* sql) : db_(db) {
-    if (sqlite3_prepare_v2(db, sql, -1, &s_, nullptr) != SQLITE_OK)
-      throw std::runtime_error(std::string("sqlite: ") + sqlite3_errmsg(db) + " in " + sql);
+    const int rc = sqlite3_prepare_v2(db, sql, -1, &s_, nullptr);
+    if (rc != SQLITE_OK) throw_store(db, rc, std::string(" in ") + sql);
   }
   ~Stmt() { sqlite3_finalize(s_); }
   Stmt& text(int i, const std::string& v) {
@@ -40,8 +65,7 @@ class Stmt {
   // SQLITE_ROW or SQLITE_DONE; throws on errors other than a constraint.
   int step() {
     const int rc = sqlite3_step(s_);
-    if (rc != SQLITE_ROW && rc != SQLITE_DONE && rc != SQLITE_CONSTRAINT)
-      throw std::runtime_error(std::string("sqlite: ") + sqlite3_errmsg(db_));
+    if (rc != SQLITE_ROW && rc != SQLITE_DONE && rc != SQLITE_CONSTRAINT) throw_store(db_, rc, "");
     return rc;
   }
   std::string column_blob(int i) {
@@ -66,7 +90,8 @@ M parse(const std::string& bytes) {
 
 }  // namespace
 
-JobStore::JobStore(const std::string& path) {
+JobStore::JobStore(const std::string& path, std::string reserve_path)
+    : reserve_path_(std::move(reserve_path)) {
   if (sqlite3_open_v2(path.c_str(), &db_,
                       SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX,
                       nullptr) != SQLITE_OK) {
@@ -91,6 +116,40 @@ JobStore::JobStore(const std::string& path) {
       "CREATE TABLE IF NOT EXISTS events("
       " id INTEGER PRIMARY KEY AUTOINCREMENT, job_id TEXT NOT NULL, event BLOB NOT NULL)");
   exec("CREATE INDEX IF NOT EXISTS events_job ON events(job_id, id)");
+  restore_reserve();
+}
+
+bool JobStore::restore_reserve() {
+  if (reserve_path_.empty()) return false;
+  struct stat st {};
+  if (::stat(reserve_path_.c_str(), &st) == 0 && st.st_size >= kReserveBytes) return true;
+  const int fd = ::open(reserve_path_.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0600);
+  if (fd < 0) return false;
+  // posix_fallocate really allocates the blocks (ftruncate would make a
+  // sparse file that frees nothing when deleted).
+  const int err = ::posix_fallocate(fd, 0, kReserveBytes);
+  ::close(fd);
+  if (err != 0) {
+    ::unlink(reserve_path_.c_str());  // no half reserve: it would only take space
+    return false;
+  }
+  return true;
+}
+
+bool JobStore::release_reserve() {
+  return !reserve_path_.empty() && ::unlink(reserve_path_.c_str()) == 0;
+}
+
+template <class F>
+auto JobStore::write(F&& f) -> decltype(f()) {
+  try {
+    return f();
+  } catch (const StoreError& e) {
+    if (!e.full() || !release_reserve()) throw;
+    std::fprintf(stderr, "ergd: the data directory is full: released the %lld-byte reserve %s\n",
+                 static_cast<long long>(kReserveBytes), reserve_path_.c_str());
+    return f();
+  }
 }
 
 JobStore::~JobStore() {
@@ -99,34 +158,38 @@ JobStore::~JobStore() {
 
 void JobStore::exec(const char* sql) {
   char* err = nullptr;
-  if (sqlite3_exec(db_, sql, nullptr, nullptr, &err) != SQLITE_OK) {
-    std::string msg = err ? err : "?";
+  const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, &err);
+  if (rc != SQLITE_OK) {
     sqlite3_free(err);
-    throw std::runtime_error(std::string("sqlite: ") + msg + " in " + sql);
+    throw_store(db_, rc, std::string(" in ") + sql);
   }
 }
 
 std::pair<erg::v1::Job, bool> JobStore::insert(const erg::v1::Job& job) {
   std::lock_guard lock(mu_);
-  Stmt s(db_, "INSERT INTO jobs(id, tenant, state, idem_key, job) VALUES(?,?,?,?,?)");
-  s.text(1, job.id()).text(2, job.tenant()).integer(3, job.state());
-  if (job.idempotency_key().empty())
-    s.null(4);
-  else
-    s.text(4, job.idempotency_key());
-  s.blob(5, job.SerializeAsString());
-  if (s.step() == SQLITE_DONE) return {job, true};
-  // The key is taken: the job it created.
-  Stmt q(db_, "SELECT job FROM jobs WHERE tenant = ? AND idem_key = ?");
-  q.text(1, job.tenant()).text(2, job.idempotency_key());
-  if (q.step() != SQLITE_ROW) throw std::runtime_error("job store: insert failed");
-  return {parse<erg::v1::Job>(q.column_blob(0)), false};
+  return write([&]() -> std::pair<erg::v1::Job, bool> {
+    Stmt s(db_, "INSERT INTO jobs(id, tenant, state, idem_key, job) VALUES(?,?,?,?,?)");
+    s.text(1, job.id()).text(2, job.tenant()).integer(3, job.state());
+    if (job.idempotency_key().empty())
+      s.null(4);
+    else
+      s.text(4, job.idempotency_key());
+    s.blob(5, job.SerializeAsString());
+    if (s.step() == SQLITE_DONE) return {job, true};
+    // The key is taken: the job it created.
+    Stmt q(db_, "SELECT job FROM jobs WHERE tenant = ? AND idem_key = ?");
+    q.text(1, job.tenant()).text(2, job.idempotency_key());
+    if (q.step() != SQLITE_ROW) throw std::runtime_error("job store: insert failed");
+    return {parse<erg::v1::Job>(q.column_blob(0)), false};
+  });
 }
 
 void JobStore::update(const erg::v1::Job& job) {
   std::lock_guard lock(mu_);
-  Stmt s(db_, "UPDATE jobs SET state = ?, job = ? WHERE id = ?");
-  s.integer(1, job.state()).blob(2, job.SerializeAsString()).text(3, job.id()).step();
+  write([&] {
+    Stmt s(db_, "UPDATE jobs SET state = ?, job = ? WHERE id = ?");
+    s.integer(1, job.state()).blob(2, job.SerializeAsString()).text(3, job.id()).step();
+  });
 }
 
 std::optional<erg::v1::Job> JobStore::get(const std::string& id) {
@@ -196,8 +259,10 @@ erg::v1::JobEvent JobStore::append_event(const std::string& job_id, erg::v1::Job
     std::lock_guard lock(mu_);
     ev.set_unix_ms(now_ms());
     ev.clear_id();
-    Stmt s(db_, "INSERT INTO events(job_id, event) VALUES(?, ?)");
-    s.text(1, job_id).blob(2, ev.SerializeAsString()).step();
+    write([&] {
+      Stmt s(db_, "INSERT INTO events(job_id, event) VALUES(?, ?)");
+      s.text(1, job_id).blob(2, ev.SerializeAsString()).step();
+    });
     ev.set_id(sqlite3_last_insert_rowid(db_));
     ++generation_;
   }

@@ -8,6 +8,14 @@
 //
 // Thread-safe: one connection behind a mutex (calls are short; SQLite would
 // serialise writers anyway).
+//
+// A full disk. Every failed write throws StoreError (full() when the file
+// system is out of space), never leaves a half-done change (each write is one
+// SQLite transaction) and never breaks the reads. So that the writes that
+// record a failure (a job FAILED because the disk filled up) still succeed on
+// a full disk, the store keeps a reserve file, DATA/ergd.reserve (4 MiB, made
+// when there is room): a write that fails for lack of space deletes it and
+// tries once more. restore_reserve() makes it again once there is room.
 #pragma once
 
 #include <sqlite3.h>
@@ -23,9 +31,20 @@
 
 namespace erg::server {
 
+// A write the store could not make. full(): the file system had no space
+// (SQLITE_FULL, or an I/O error with ENOSPC/EDQUOT).
+struct StoreError : std::runtime_error {
+  StoreError(const std::string& m, bool full) : std::runtime_error(m), full_(full) {}
+  bool full() const { return full_; }
+
+ private:
+  bool full_;
+};
+
 class JobStore {
  public:
-  explicit JobStore(const std::string& path);
+  // `reserve_path`: the reserve file ("" : none).
+  explicit JobStore(const std::string& path, std::string reserve_path = "");
   ~JobStore();
   JobStore(const JobStore&) = delete;
   JobStore& operator=(const JobStore&) = delete;
@@ -53,8 +72,17 @@ class JobStore {
   std::uint64_t wait_events(std::uint64_t seen_generation, int timeout_ms);
   std::uint64_t generation();
 
+  // Makes the reserve file again if it is missing and the space is there
+  // (cheap when it exists). Returns whether it exists.
+  bool restore_reserve();
+
  private:
   void exec(const char* sql);
+  // Runs one write (under mu_); on a full disk, frees the reserve and retries once.
+  template <class F>
+  auto write(F&& f) -> decltype(f());
+  bool release_reserve();
+  std::string reserve_path_;
   sqlite3* db_ = nullptr;
   std::mutex mu_;
   std::condition_variable cv_;
