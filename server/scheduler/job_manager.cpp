@@ -825,9 +825,12 @@ void JobManager::on_exit(const std::string& id, int code) {
                            " (ergd --worker-retries), from its newest intact checkpoint");
     } else {
       std::string why = !r.failure.empty() ? r.failure : "the worker " + exit_text(code);
-      if (r.failure.empty() && code != 2 && cfg_.worker_retries > 0)
-        why += " (after " + std::to_string(r.job.worker_retries()) +
-               " retries, ergd --worker-retries; erg resume " + id + " continues it)";
+      if (r.failure.empty() && code != 2)
+        why += " (" +
+               (cfg_.worker_retries > 0 ? "after " + std::to_string(r.job.worker_retries()) +
+                                              " retries, ergd --worker-retries; "
+                                        : std::string()) +
+               "erg resume " + id + " continues it from its checkpoint)";
       finish(erg::v1::FAILED, why);
     }
   } catch (const std::exception& e) {

@@ -76,7 +76,9 @@ class DiskFull(unittest.TestCase):
         return self.ergd
 
     def assertAlive(self):
-        self.assertIsNone(self.ergd.proc.poll(), open(self.ergd.log).read()[-3000:])
+        if self.ergd.proc.poll() is not None:
+            with open(self.ergd.log) as f:
+                self.fail("ergd exited: " + f.read()[-3000:])
 
     def assertNoOrphans(self):
         jobs = {j.id for j in self.ergd.stub.ListJobs(S.ListJobsRequest(page_size=1000),
@@ -100,6 +102,7 @@ class DiskFull(unittest.TestCase):
         j = e.wait(filler.id, timeout=300)
         self.assertEqual(j.state, S.FAILED)
         self.assertIn("ENOSPC", j.failure_reason)
+        print("the filled job failed:", j.failure_reason, file=sys.stderr)
         self.assertAlive()
         # Reads are served.
         self.assertEqual(e.get(small.id).state, S.SUCCEEDED)
@@ -127,13 +130,16 @@ class DiskFull(unittest.TestCase):
         self.assertNoOrphans()
         self.assertAlive()
 
-        # Space again: jobs run again.
+        # The operator frees space (the fillers, the failed job's snapshots):
+        # jobs run again.
         for name in os.listdir(self.mnt):
             if name.startswith("filler-"):
                 os.remove(os.path.join(self.mnt, name))
+        shutil.rmtree(os.path.join(self.data, "jobs", filler.id, "run", "snapshots"))
         time.sleep(2.5)
         again = e.submit(spec_json(name="again", steps=20))
-        self.assertEqual(e.wait(again.id).state, S.SUCCEEDED)
+        j = e.wait(again.id)
+        self.assertEqual(j.state, S.SUCCEEDED, j.failure_reason + j.log_tail)
         self.assertNoOrphans()
         e.stop()
 
