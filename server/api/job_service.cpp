@@ -282,6 +282,7 @@ grpc::Status JobService::SteerJob(grpc::ServerContext* ctx, const erg::v1::Steer
 grpc::Status JobService::ResumeJob(grpc::ServerContext* ctx, const erg::v1::ResumeJobRequest* req,
                                    erg::v1::Job* out) {
   return call("ResumeJob", ctx, [&](const std::string& tenant) {
+    check_job_id(req->id());
     *out = mgr_.resume(tenant, req->id());
     return grpc::Status::OK;
   });
