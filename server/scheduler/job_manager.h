@@ -54,7 +54,8 @@ struct ManagerConfig {
   int max_attempts = 10;
   // A worker that dies (killed by a signal it was not sent by ergd, or a
   // crash: no "failed" event) is started again from its newest intact
-  // checkpoint, at most this many times in a row (0: never).
+  // checkpoint, at most this many times until the job ends or is resumed
+  // (ResumeJob resets the count; 0: never).
   int worker_retries = 3;
   int max_time_limit_minutes = 7 * 24 * 60;  // Resources.time_limit_minutes
   // Submissions are refused (RESOURCE_EXHAUSTED), and queued jobs wait,
