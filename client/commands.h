@@ -10,6 +10,7 @@ namespace erg::client {
 // Local runs (local_run.cpp): erg-worker on this machine.
 int cmd_run(const std::vector<std::string>& args);
 int cmd_check(const std::vector<std::string>& args);
+int cmd_calibrate(const std::vector<std::string>& args);
 // A snapshot to GeoTIFF, PNG16, EXR or OBJ (export_cmd.cpp, worker/export/).
 int cmd_export(const std::vector<std::string>& args);
 

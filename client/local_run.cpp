@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -24,6 +25,7 @@
 #include "job/spec.h"
 #include "job/worker_event.h"
 #include "progress_bar.h"
+#include "sim/calibration.h"
 
 namespace erg::client {
 
@@ -225,6 +227,10 @@ int cmd_check(const std::vector<std::string>& args) {
     // units, resampling, border blending), on stderr to keep stdout JSON.
     for (const auto& note : erg::job::describe_maps(spec, erg::job::base_dir_of(args[0])))
       std::cerr << "erg: " << note << "\n";
+    // Model or physical units, and in the physical modes the measured time
+    // per step (sim/calibration.h).
+    std::istringstream units(erg::describe_units(spec));
+    for (std::string line; std::getline(units, line);) std::cerr << "erg: " << line << "\n";
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "erg: invalid job:\n" << e.what() << "\n";

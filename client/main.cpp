@@ -57,6 +57,10 @@ const CommandUsage kUsage[] = {
      "                   [--threads T] [--backend auto|cpu|cuda] [--ranks P [--tiles PXxPY]]\n"
      "  erg run --resume DIR [--steps N] [...]\n"},
     {"check", "  erg check JOB.json   validate a job; print it with all defaults\n"},
+    {"calibrate",
+     "  erg calibrate JOB.json [--ratios R,R,...] [--drift-steps N]\n"
+     "                     the time per step measured, the flat-bed flux against the flux law\n"
+     "                     at u* = R u_t, the wind regime's drift against DP/RDP/RDD (JSON)\n"},
     {"params", "  erg params           list every model parameter with its default and source\n"},
     {"export",
      "  erg export DIR --format geotiff|png16|exr|obj --out FILE [--step S]\n"
@@ -169,6 +173,7 @@ int main(int argc, char** argv) {
   }
   if (cmd == "run") return cmd_run(args);
   if (cmd == "check") return cmd_check(args);
+  if (cmd == "calibrate") return cmd_calibrate(args);
   if (cmd == "export") return cmd_export(args);
   if (cmd == "amplify") return cmd_amplify(args);
   if (cmd == "validate") return cmd_validate(args);

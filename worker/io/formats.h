@@ -49,6 +49,8 @@ Hid layer_memory_space(const SnapshotLayer& l, std::size_t cells, const std::str
 // The root attributes of a snapshot (SnapshotMeta plus the fixed "periodic"
 // and "units").
 void write_snapshot_attrs(hid_t file, const SnapshotMeta& meta, const std::string& path);
+// time_s, time_years, the wind state and the calibration (called by the above).
+void write_physical_attrs(hid_t file, const SnapshotMeta& meta, const std::string& path);
 
 // ---- checkpoints --------------------------------------------------------------
 

@@ -36,6 +36,17 @@ struct SnapshotMeta {
   std::string airborne_units_total;
   std::uint64_t seed = 0;
   std::string backend;  // "cpu" or "cuda"
+  // Physical time, the wind and the calibration (sim/calibration.h), written
+  // as their own attributes by detail::write_physical_attrs.
+  double time_s = 0;
+  bool physical = false;          // wind in physical units (else model units)
+  double shear_velocity_mps = 0;  // u* of the high-altitude wind at this step
+  double wind_speed_mps = 0;      // model wind |a| at this step
+  double wind_direction_deg = 0;  // towards, ccw from +x
+  double dt_s = 0;                // time per step
+  double threshold_mps = 0, reference_shear_velocity_mps = 0;
+  double calibration_flux_m2_per_step = 0, calibration_law_flux_m2_per_s = 0;
+  std::string flux_law;
 };
 
 struct SnapshotFields {

@@ -68,6 +68,32 @@ void detail::write_snapshot_attrs(hid_t fid, const SnapshotMeta& meta, const std
   // Fixed by the model: the domain is a torus and all lengths are metres.
   write_attr_str(fid, "periodic", "xy", path);
   write_attr_str(fid, "units", "m", path);
+  write_physical_attrs(fid, meta, path);
+}
+
+// Time in seconds and Julian years (365.25 days), the wind of the step and
+// how the time per step was obtained (sim/calibration.h).
+void detail::write_physical_attrs(hid_t fid, const SnapshotMeta& meta, const std::string& path) {
+  write_attr_f64(fid, "time_s", meta.time_s, path);
+  write_attr_f64(fid, "time_years", meta.time_s / (365.25 * 86400.0), path);
+  write_attr_str(fid, "wind_units", meta.physical ? "physical" : "model", path);
+  write_attr_f64(fid, "wind_speed_mps", meta.wind_speed_mps, path);
+  write_attr_f64(fid, "wind_direction_deg", meta.wind_direction_deg, path);
+  write_attr_f64(fid, "time_step_s", meta.dt_s, path);
+  if (!meta.physical) {
+    write_attr_str(fid, "time_step_source", "model.time_step_days (a label)", path);
+    return;
+  }
+  write_attr_str(fid, "time_step_source",
+                 "measured flat-bed flux / flux law at the reference u* (docs/physical-units.md)",
+                 path);
+  write_attr_f64(fid, "shear_velocity_mps", meta.shear_velocity_mps, path);
+  write_attr_f64(fid, "threshold_shear_velocity_mps", meta.threshold_mps, path);
+  write_attr_f64(fid, "calibration_shear_velocity_mps", meta.reference_shear_velocity_mps, path);
+  write_attr_f64(fid, "calibration_model_flux_m2_per_step", meta.calibration_flux_m2_per_step,
+                 path);
+  write_attr_f64(fid, "calibration_law_flux_m2_per_s", meta.calibration_law_flux_m2_per_s, path);
+  write_attr_str(fid, "flux_law", meta.flux_law, path);
 }
 
 namespace {
@@ -172,6 +198,7 @@ Snapshot read_snapshot(const std::string& path, bool terrain_only) {
   m.airborne_units_total = detail::read_attr_str(fid, "airborne_units_total", path);
   m.seed = detail::read_attr_u64(fid, "seed", path);
   m.backend = detail::read_attr_str(fid, "backend", path);
+  if (H5Aexists(fid, "time_s") > 0) m.time_s = detail::read_attr_f64(fid, "time_s", path);
 
   const hsize_t ny = static_cast<hsize_t>(m.ny), nx = static_cast<hsize_t>(m.nx);
   auto layer = [&](const char* name) { return read_layer(fid, name, ny, nx, path); };

@@ -246,6 +246,42 @@ void check_wind(const erg::v1::WindRegime& w, const std::string& path,
   }
 }
 
+// Physical wind speeds (WindRegime.speed_is): one kind for the whole job,
+// and a measuring height above the roughness length.
+void check_wind_units(const JobSpec& spec, std::vector<std::string>& out) {
+  using R = erg::v1::WindRegime;
+  const auto phys = [](const R& w) {
+    return w.speed_is() == R::SHEAR_VELOCITY || w.speed_is() == R::WIND_AT_HEIGHT;
+  };
+  const auto kind = [](const R& w) {
+    return w.speed_is() == R::SHEAR_VELOCITY   ? std::string("SHEAR_VELOCITY")
+           : w.speed_is() == R::WIND_AT_HEIGHT ? std::string("WIND_AT_HEIGHT")
+                                               : std::string("MODEL");
+  };
+  const double d =
+      spec.physics().has_grain_diameter_m() ? spec.physics().grain_diameter_m() : 0.00025;
+  const auto check_height = [&](const R& w, const std::string& path) {
+    if (w.speed_is() != R::WIND_AT_HEIGHT) return;
+    const double z0 = w.roughness_m() > 0 ? w.roughness_m() : d / 30.0;
+    if (w.height_m() <= z0)
+      out.push_back(path + ".height_m = " + num(w.height_m()) +
+                    " m must be above the roughness length z0 = " + num(z0) +
+                    " m (law of the wall, u* = kappa U / ln(z / z0))");
+  };
+  check_height(spec.wind(), "wind");
+  for (int k = 0; k < spec.events_size(); ++k) {
+    const auto& e = spec.events(k);
+    if (!e.has_wind()) continue;
+    const std::string p = "events[" + std::to_string(k) + "].wind";
+    check_height(e.wind(), p);
+    if (phys(e.wind()) != phys(spec.wind()))
+      out.push_back(p + ".speed_is = " + kind(e.wind()) +
+                    " but wind.speed_is = " + kind(spec.wind()) +
+                    "; every regime of a job gives its speeds in model units, or every one in "
+                    "physical units (SHEAR_VELOCITY or WIND_AT_HEIGHT)");
+  }
+}
+
 // A wind primitive [P19 4.4] (stages/wind_primitives.h).
 void check_wind_primitive(const erg::v1::WindPrimitive& w, const std::string& path,
                           const JobSpec& spec, std::vector<std::string>& out) {
@@ -374,6 +410,10 @@ void apply_defaults(JobSpec& spec) {
   spec.mutable_model();
   spec.mutable_amplify();
   spec.mutable_layers();
+  // The physical modes read the sand's properties (wind/physics.h).
+  if (spec.wind().speed_is() == erg::v1::WindRegime::SHEAR_VELOCITY ||
+      spec.wind().speed_is() == erg::v1::WindRegime::WIND_AT_HEIGHT)
+    spec.mutable_physics();
   defaults_rec(spec);
   if (spec.transport() == JobSpec::TRANSPORT_UNSPECIFIED) spec.set_transport(JobSpec::EXPECTED);
 }
@@ -391,6 +431,7 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
     out.push_back("wind is required: the high-altitude wind regime");
   else
     check_wind(spec.wind(), "wind", out);
+  check_wind_units(spec, out);
 
   // The hop is bounded by the saltation halo (docs/design.md, "Tiling").
   constexpr double kMaxHopCells = 16;

@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "core/units.h"
+#include "wind/physics.h"
 
 namespace erg {
 
@@ -69,6 +70,19 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
   s.abrasion_threshold = m_to_units(m.abrasion_sand_threshold_m());
   s.stochastic = md.stochastic;
   s.erosion_k = static_cast<float>(m.echo_erosion_k());
+  s.ustar_per_mps = 0.0f;
+  s.ustar_t = 0.0f;
+  s.inv_reference_shape = 0.0f;
+  s.kawamura = false;
+  if (physics::physical(spec)) {
+    const physics::Sand sand = physics::sand_of(spec);
+    const double ut = physics::threshold(sand);
+    s.ustar_per_mps = static_cast<float>(1.0 / physics::model_gain(sand));
+    s.ustar_t = static_cast<float>(ut);
+    s.inv_reference_shape =
+        static_cast<float>(1.0 / physics::flux_shape(sand, sand.reference_excess * ut));
+    s.kawamura = sand.law == erg::v1::PhysicalParameters::KAWAMURA_1951;
+  }
 
   md.reptation_k = static_cast<float>(m.reptation_k());
   md.tan_l_sand = static_cast<float>(std::tan(m.repose_deg() * kDeg) * l);

@@ -188,6 +188,11 @@ void Simulation::step() {
   ++times_.steps;
 }
 
+const Calibration& Simulation::calibration() {
+  if (!calibration_) calibration_ = calibrate(spec_);
+  return *calibration_;
+}
+
 TileState Simulation::state() {
   TileState s;
   s.allocate(model_.tile);
@@ -244,6 +249,21 @@ io::SnapshotMeta Simulation::snapshot_meta() {
   m.airborne_units_total = to_decimal(t.airborne);
   m.seed = static_cast<std::uint64_t>(spec_.seed());
   m.backend = backend_->name();
+  const Calibration& c = calibration();
+  m.time_s = time_s();
+  m.physical = c.physical;
+  m.dt_s = c.dt_s;
+  const Vec2 a = wind::at_step(spec_, step_);
+  m.wind_speed_mps = length(a);
+  m.wind_direction_deg = std::atan2(a.y, a.x) * 180.0 / 3.14159265358979323846;
+  if (c.physical) {
+    m.shear_velocity_mps = wind::shear_velocity_at(spec_, step_);
+    m.threshold_mps = c.ustar_t;
+    m.reference_shear_velocity_mps = c.ustar_ref;
+    m.calibration_flux_m2_per_step = c.q_model_m2_step;
+    m.calibration_law_flux_m2_per_s = c.q_law_m2_s;
+    m.flux_law = c.law;
+  }
   return m;
 }
 

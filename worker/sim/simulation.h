@@ -11,6 +11,7 @@
 #include "backend/backend.h"
 #include "erg/v1/job.pb.h"
 #include "io/io.h"
+#include "sim/calibration.h"
 #include "sim/model.h"
 #include "sim/state.h"
 
@@ -65,7 +66,14 @@ class Simulation {
   void add_events(const std::vector<erg::v1::Event>& events);
 
   std::int64_t step_index() const { return step_; }
-  double time_days() const { return static_cast<double>(step_) * model_.time_step_days; }
+  // Physical time: steps x the calibrated time per step (sim/calibration.h),
+  // measured on first use.
+  const Calibration& calibration();
+  double time_s() { return static_cast<double>(step_) * calibration().dt_s; }
+  double time_days() {
+    return calibration().physical ? time_s() / 86400.0
+                                  : static_cast<double>(step_) * model_.time_step_days;
+  }
   const erg::v1::JobSpec& spec() const { return spec_; }
   const Model& model() const { return model_; }
   Backend& backend() { return *backend_; }
@@ -103,6 +111,7 @@ class Simulation {
   std::int64_t step_ = 0;
   total_t sand_added_ = 0, bedrock_added_ = 0;
   StageTimes times_;
+  std::optional<Calibration> calibration_;
 };
 
 // Generates the initial exact state of a tile from the spec.

@@ -31,7 +31,30 @@ struct Params {
   units_t abrasion_threshold;  // sand thinner than this is abraded through
   bool stochastic;
   float erosion_k;  // k_e of echo-dune erosion cells (stages/echo_dunes.h)
+  // Physical modes (wind/physics.h; 0 in model units): the local shear
+  // velocity is |w| * ustar_per_mps; the lift follows the flux law's shape
+  // above the threshold ustar_t, normalised to 1 at the reference u*.
+  float ustar_per_mps;
+  float ustar_t;
+  float inv_reference_shape;  // 1 / flux_shape(reference u*)
+  bool kawamura;              // flux law: Kawamura 1951, else Lettau & Lettau 1978
 };
+
+// How much of a slab a cell lifts for its surface wind: 1 in model units;
+// in the physical modes the saturated flux law's dependence on the local u*
+// relative to the reference u* (Lettau & Lettau 1978 u*^2 (u* - u_t), or
+// Kawamura 1951 (u* - u_t)(u* + u_t)^2), and 0 at or below the fluid
+// threshold u_t of Bagnold 1941: below it the wind lifts nothing. With the
+// hop of a fixed length (landing() below) the flux over flat sand is then
+// proportional to the law (Owen 1964: the mass in saltation grows with the
+// excess shear; Creyssels et al. 2009: hop lengths do not depend on u*).
+ERG_HD float transport_factor(float wind_speed, const Params& p) {
+  const float u = wind_speed * p.ustar_per_mps;
+  const float e = max_of(u - p.ustar_t, 0.0f);
+  const float up = u + p.ustar_t;
+  const float shape = p.kawamura ? e * up * up : u * u * e;
+  return p.ustar_per_mps > 0.0f ? shape * p.inv_reference_shape : 1.0f;
+}
 
 // The lift factor (1 - sigma)(1 - v) with the echo-dune classification r_e
 // (stages/echo_dunes.h): + k_e on erosion cells (r_e < 0), x (1 - r_e) on
@@ -46,10 +69,12 @@ ERG_HD float echo_deposition(float beta, float echo) {
 
 // (1) Lift: eps_S (1 - sigma)(1 - v), at most the sand present [N24 eq. 5].
 // Still air lifts nothing (a hop of length 0 would only churn the cell).
+// Times transport_factor (1 in model units, so the product is exact).
 ERG_HD units_t lift_expected(units_t sand, float shadow, float v, float wind_speed, const Params& p,
                              float echo = 0.0f) {
   const units_t want =
-      floor_units(p.slab_units * echo_lift_factor(vegetation::lift_factor(shadow, v), echo, p));
+      floor_units(p.slab_units * (echo_lift_factor(vegetation::lift_factor(shadow, v), echo, p) *
+                                  transport_factor(wind_speed, p)));
   return wind_speed > 0.0f ? min_of(want, sand) : 0;
 }
 // A whole slab is lifted with probability (1 - sigma)(1 - v) [P19 5.1].
@@ -57,14 +82,17 @@ ERG_HD units_t lift_expected(units_t sand, float shadow, float v, float wind_spe
 // slabs surely, one more with its fractional part.)
 ERG_HD units_t lift_stochastic(units_t sand, float shadow, float v, float wind_speed, float u,
                                const Params& p, float echo = 0.0f) {
-  const float f = echo_lift_factor(vegetation::lift_factor(shadow, v), echo, p);
+  const float f = echo_lift_factor(vegetation::lift_factor(shadow, v), echo, p) *
+                  transport_factor(wind_speed, p);
   const float whole = floorf(f);
   const float slabs = wind_speed > 0.0f ? whole + (u < f - whole ? 1.0f : 0.0f) : 0.0f;
   return min_of(floor_units(p.slab_units * slabs), sand);
 }
 
 // (2) Landing point of an amount leaving local cell (x, y) under wind w, in
-// local cell coordinates: one hop of |w| hop_time_s metres, at most max_hop_m.
+// local cell coordinates: one hop of |w| hop_time_s metres, at most max_hop_m;
+// in the physical modes always max_hop_m (d0 of [P19 5.1]), the direction
+// from w (hop lengths do not depend on u*: Creyssels et al. 2009).
 struct Landing {
   int x0, y0;    // lower-left of the four receiving cells
   float fx, fy;  // bilinear weights towards x0 + 1, y0 + 1
@@ -72,7 +100,8 @@ struct Landing {
 ERG_HD Landing landing(int x, int y, Vec2 w, const Params& p) {
   const float speed = length(w);
   const bool moving = speed > 0.0f;  // (selects, no branch: loops vectorise)
-  const float hop_m = min_of(speed * p.hop_time_s, p.max_hop_m);
+  const float hop_m =
+      p.ustar_per_mps > 0.0f ? p.max_hop_m : min_of(speed * p.hop_time_s, p.max_hop_m);
   const float scale = moving ? hop_m / ((moving ? speed : 1.0f) * p.cell_m) : 0.0f;
   // The hop is split into whole cells and a fraction on its own (not added
   // to the cell's coordinate in floating point), so the split does not

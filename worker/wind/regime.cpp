@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/philox.h"
+#include "wind/physics.h"
 
 namespace erg::wind {
 
@@ -106,15 +107,35 @@ Vec2 regime_at(const erg::v1::WindRegime& regime, std::int64_t local_step, std::
   return {0.0f, 0.0f};
 }
 
-Vec2 at_step(const erg::v1::JobSpec& spec, std::int64_t step) {
+namespace {
+const erg::v1::WindRegime& regime_of(const erg::v1::JobSpec& spec, std::int64_t step,
+                                     std::int64_t& since) {
   const erg::v1::WindRegime* regime = &spec.wind();
-  std::int64_t since = 0;
+  since = 0;
   for (const auto& e : spec.events())
     if (e.has_wind() && e.step() <= step && e.step() >= since) {
       regime = &e.wind();
       since = e.step();
     }
-  return regime_at(*regime, step - since, step, spec.seed());
+  return *regime;
+}
+}  // namespace
+
+Vec2 at_step(const erg::v1::JobSpec& spec, std::int64_t step) {
+  std::int64_t since = 0;
+  const auto& regime = regime_of(spec, step, since);
+  const Vec2 a = regime_at(regime, step - since, step, spec.seed());
+  if (!physics::physical(regime)) return a;
+  // Physical speeds: u* (directly or by the law of the wall), and the model
+  // wind is the 10 m wind over still sand for that u* (wind/physics.h).
+  const physics::Sand s = physics::sand_of(spec);
+  return static_cast<float>(physics::ustar_per_speed(regime, s) * physics::model_gain(s)) * a;
+}
+
+double shear_velocity_at(const erg::v1::JobSpec& spec, std::int64_t step) {
+  if (!physics::physical(spec)) return 0.0;
+  return static_cast<double>(length(at_step(spec, step))) /
+         physics::model_gain(physics::sand_of(spec));
 }
 
 }  // namespace erg::wind

@@ -1,0 +1,90 @@
+#include "wind/physics.h"
+
+#include <cmath>
+
+namespace erg::physics {
+
+namespace {
+// Bagnold's reference grain of the sqrt(d / D) scaling (Lettau & Lettau 1978).
+constexpr double kBagnoldD = 0.00025;
+constexpr double kLettauC = 4.2;     // Lettau & Lettau 1978
+constexpr double kKawamuraK = 2.78;  // Kawamura 1951
+}  // namespace
+
+Sand sand_of(const erg::v1::JobSpec& spec) {
+  // apply_defaults fills physics in the physical modes; a job in model units
+  // has none, and then the proto's defaults are read field by field.
+  erg::v1::PhysicalParameters p = spec.physics();
+  const auto* d = p.GetDescriptor();
+  const auto* r = p.GetReflection();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const auto* f = d->field(i);
+    const auto& o = f->options().GetExtension(erg::v1::spec);
+    if (f->has_presence() && !r->HasField(p, f) && o.has_default_value() &&
+        f->cpp_type() == google::protobuf::FieldDescriptor::CPPTYPE_DOUBLE)
+      r->SetDouble(&p, f, o.default_value());
+  }
+  Sand s;
+  s.d = p.grain_diameter_m();
+  s.rho_s = p.grain_density_kg_m3();
+  s.rho = p.air_density_kg_m3();
+  s.packing = p.packing_fraction();
+  s.g = p.gravity_m_s2();
+  s.a = p.threshold_a();
+  s.kappa = p.von_karman();
+  s.reference_excess = p.reference_excess();
+  s.law = p.flux_law() == erg::v1::PhysicalParameters::KAWAMURA_1951
+              ? erg::v1::PhysicalParameters::KAWAMURA_1951
+              : erg::v1::PhysicalParameters::LETTAU_1978;
+  return s;
+}
+
+bool physical(const erg::v1::WindRegime& w) {
+  return w.speed_is() == erg::v1::WindRegime::SHEAR_VELOCITY ||
+         w.speed_is() == erg::v1::WindRegime::WIND_AT_HEIGHT;
+}
+bool physical(const erg::v1::JobSpec& spec) {
+  return physical(spec.wind());
+}
+
+double threshold(const Sand& s) {
+  return s.a * std::sqrt((s.rho_s - s.rho) / s.rho * s.g * s.d);
+}
+
+double flux_shape(const Sand& s, double ustar) {
+  const double ut = threshold(s);
+  if (ustar <= ut) return 0.0;
+  if (s.law == erg::v1::PhysicalParameters::KAWAMURA_1951)
+    return (ustar - ut) * (ustar + ut) * (ustar + ut);
+  return ustar * ustar * (ustar - ut);
+}
+
+double flux_mass(const Sand& s, double ustar) {
+  const double pre = s.law == erg::v1::PhysicalParameters::KAWAMURA_1951
+                         ? kKawamuraK * s.rho / s.g
+                         : kLettauC * std::sqrt(s.d / kBagnoldD) * s.rho / s.g;
+  return pre * flux_shape(s, ustar);
+}
+
+double flux_bulk(const Sand& s, double ustar) {
+  return flux_mass(s, ustar) / (s.packing * s.rho_s);
+}
+
+std::string law_name(const Sand& s) {
+  return s.law == erg::v1::PhysicalParameters::KAWAMURA_1951
+             ? "Kawamura 1951: q = 2.78 rho/g (u* - u_t)(u* + u_t)^2"
+             : "Lettau & Lettau 1978: q = 4.2 sqrt(d/0.25mm) rho/g u*^2 (u* - u_t)";
+}
+
+double ustar_per_speed(const erg::v1::WindRegime& w, const Sand& s) {
+  if (w.speed_is() != erg::v1::WindRegime::WIND_AT_HEIGHT) return 1.0;
+  const double z0 = w.roughness_m() > 0 ? w.roughness_m() : s.d / 30.0;
+  // height_m >= 0.01 m and z0 <= 1 m are validated, and height_m > z0.
+  return s.kappa / std::log(w.height_m() / z0);
+}
+
+double model_gain(const Sand& s) {
+  return std::log(10.0 / (s.d / 30.0)) / s.kappa;
+}
+
+}  // namespace erg::physics

@@ -1,0 +1,52 @@
+// The sand and the wind in physical terms (docs/physical-units.md): the fluid
+// threshold of Bagnold 1941, the saturated flux laws of Lettau & Lettau 1978
+// and Kawamura 1951, the law of the wall, and how a physical wind drives the
+// model. Used by the wind regime (a(t) from u*), the model (the lift's flux
+// factor, stages/saltation.h), the calibration (sim/calibration.h) and the
+// tests, so every number comes from one place.
+#pragma once
+
+#include <string>
+
+#include "erg/v1/job.pb.h"
+
+namespace erg::physics {
+
+// PhysicalParameters with their defaults (from the proto options) resolved.
+struct Sand {
+  double d = 0, rho_s = 0, rho = 0, packing = 0, g = 0, a = 0, kappa = 0;
+  double reference_excess = 0;
+  erg::v1::PhysicalParameters::FluxLaw law = erg::v1::PhysicalParameters::LETTAU_1978;
+};
+Sand sand_of(const erg::v1::JobSpec& spec);
+
+// Whether the job's wind speeds are physical (shear velocity or a wind at a
+// height) rather than model units.
+bool physical(const erg::v1::WindRegime& w);
+bool physical(const erg::v1::JobSpec& spec);
+
+// Fluid threshold u_t = A sqrt((rho_s - rho) / rho g d) [Bagnold 1941 ch. 7], m/s.
+double threshold(const Sand& s);
+// Saturated mass flux (kg per metre of width per second) at shear velocity
+// u*; 0 at or below the threshold.
+double flux_mass(const Sand& s, double ustar);
+// The same as a bulk flux: m^2/s of sand as it lies (packing * rho_s).
+double flux_bulk(const Sand& s, double ustar);
+// Name and formula of the law, for attributes and reports.
+std::string law_name(const Sand& s);
+// The law's dependence on u* alone, which the lift follows: u*^2 (u* - u_t)
+// (Lettau) or (u* - u_t)(u* + u_t)^2 (Kawamura); 0 below u_t.
+double flux_shape(const Sand& s, double ustar);
+
+// Shear velocity of a regime's speed (speed_is): u* itself, or kappa U /
+// ln(z / z0) for a wind at a height (z0 = 0 means d / 30). Linear in speed.
+double ustar_per_speed(const erg::v1::WindRegime& w, const Sand& s);
+
+// In the physical modes the model's high-altitude wind a(t) (which venturi,
+// warping and shadow shape) is the 10 m wind over still sand (z0 = d / 30)
+// for the regime's u*: |a| = u* ln(10 m / z0) / kappa. The surface wind then
+// gives the local u* = |w| / model_gain: a speed-up of the wind is a speed-up
+// of u*.
+double model_gain(const Sand& s);
+
+}  // namespace erg::physics
