@@ -55,7 +55,7 @@ void show_event(const erg::v1::WorkerEvent& ev, ProgressBar& bar, const std::str
   switch (ev.kind_case()) {
     case Kind::kProgress: {
       const auto& p = ev.progress();
-      bar.update(ev.step(), p.steps(), p.steps_per_s(), p.eta_s());
+      bar.update(ev.step(), p.steps(), p.steps_per_s(), p.eta_s(), p.time_years());
       break;
     }
     case Kind::kSnapshot:

@@ -44,13 +44,16 @@ class ProgressBar {
   ProgressBar() : tty_(::isatty(STDERR_FILENO) == 1) {}
 
   // Steps of a run.
-  void update(long long step, long long steps, double rate, double eta) {
+  // `years`: simulated time (negative: not known).
+  void update(long long step, long long steps, double rate, double eta, double years = -1) {
     const double frac = steps > 0 ? static_cast<double>(step) / static_cast<double>(steps) : 1.0;
+    char sim[48] = "";
+    if (years >= 0) std::snprintf(sim, sizeof sim, "  %.3g years", years);
     char line[256];
     std::snprintf(line, sizeof line,
-                  "step %lld/%lld [%s] %3d%%  %.2f steps/s  ETA %s  snapshots %d", step, steps,
-                  bar(frac).c_str(), static_cast<int>(frac * 100), rate, fmt_duration(eta).c_str(),
-                  snapshots_);
+                  "step %lld/%lld%s [%s] %3d%%  %.2f steps/s  ETA %s  snapshots %d", step, steps,
+                  sim, bar(frac).c_str(), static_cast<int>(frac * 100), rate,
+                  fmt_duration(eta).c_str(), snapshots_);
     draw(frac, line);
   }
 

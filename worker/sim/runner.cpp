@@ -483,6 +483,7 @@ int run_job(const RunConfig& cfg, MPI_Comm world) {
         p.set_steps_per_s(rate);
         p.set_eta_s(eta);
         p.set_time_days(sim->time_days());
+        p.set_time_years(sim->time_s() / (365.25 * 86400.0));
         *p.mutable_totals() = totals();
         progress.emit(e);
       }
