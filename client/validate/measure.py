@@ -34,6 +34,10 @@ def load_snapshot(path):
             "path": str(path),
             "step": int(attr("step")),
             "time_days": float(attr("time_days")),
+            # Julian years (the snapshot's own, else from time_days).
+            "time_years": float(attr("time_years")) if "time_years" in a
+            else float(attr("time_days")) / 365.25,
+            "time_step_s": float(attr("time_step_s")) if "time_step_s" in a else None,
             "cell_size_m": float(attr("cell_size_m")),
             "sand": layer(f, "sand"),
             "bedrock": layer(f, "bedrock"),
@@ -129,7 +133,8 @@ def track(frames, domain_m, max_jump_m):
     x, y (metres) and heights per frame."""
     lx, ly = domain_m
     tracks = [{"x": [d["x_m"]], "y": [d["y_m"]], "h": [d["height_m"]],
-               "v": [d["volume_m3"]], "alive": True} for d in frames[0]]
+               "v": [d["volume_m3"]], "w": [d.get("width_m", float("nan"))], "alive": True}
+              for d in frames[0]]
     for frame in frames[1:]:
         taken = set()
         for t in tracks:
@@ -154,6 +159,7 @@ def track(frames, domain_m, max_jump_m):
             t["y"].append(t["y"][-1] + wrap_delta(d["y_m"] - py, ly))
             t["h"].append(d["height_m"])
             t["v"].append(d["volume_m3"])
+            t["w"].append(d.get("width_m", float("nan")))
     return [t for t in tracks if t["alive"]]
 
 
@@ -179,6 +185,22 @@ def loglog_fit(x, y):
 
 
 # --- barchan shape ------------------------------------------------------------
+
+def cutoff_fit(h, c):
+    """Least-squares fit of c = A / (H + H0) (A = a Q, the cut-off form of
+    Andreotti et al. 2002 and Hersen et al. 2002) over H0 >= 0: 1 / c is
+    linear in H, 1/c = H / A + H0 / A. Returns (A, H0)."""
+    h = np.asarray(h, dtype=np.float64)
+    inv = 1.0 / np.asarray(c, dtype=np.float64)
+    slope, icept = np.polyfit(h, inv, 1)
+    if slope <= 0:
+        return float("nan"), float("nan")
+    a = 1.0 / slope
+    h0 = icept * a
+    if h0 < 0:  # constrained: H0 = 0, A = mean of c H
+        return float(np.mean(np.asarray(c) * h)), 0.0
+    return float(a), float(h0)
+
 
 def barchan_shape(dune, sand, cell_size_m, wind_deg):
     """Height over horn-to-horn width, and whether the horns point downwind.
