@@ -191,5 +191,35 @@ TEST(PhysicalUnits, TimePerStepIsMeasured) {
   EXPECT_EQ(cl.dt_s, 10 * 86400.0);
 }
 
+// Snapshots carry the time in seconds, the wind of the step and the
+// calibration (detail::write_physical_attrs).
+TEST(PhysicalUnits, SnapshotsCarryTimeWindAndCalibration) {
+  const auto spec = test::spec_from(job_json(
+      R"({"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.4, "direction_deg": 30}})"));
+  Simulation sim(spec, "", test::cpu_threads(1));
+  for (int k = 0; k < 3; ++k) sim.step();
+  const io::SnapshotMeta m = sim.snapshot_meta();
+  const Calibration c = calibrate(spec);
+  EXPECT_TRUE(m.physical);
+  EXPECT_EQ(m.dt_s, c.dt_s);
+  EXPECT_DOUBLE_EQ(m.time_s, 3 * c.dt_s);
+  EXPECT_DOUBLE_EQ(m.time_days, 3 * c.dt_s / 86400);
+  EXPECT_NEAR(m.shear_velocity_mps, 0.4, 1e-6);
+  EXPECT_NEAR(m.wind_direction_deg, 30, 1e-4);
+  EXPECT_EQ(m.threshold_mps, c.ustar_t);
+  EXPECT_EQ(m.calibration_flux_m2_per_step, c.q_model_m2_step);
+  EXPECT_NE(m.flux_law.find("Lettau"), std::string::npos);
+  const std::string path = ::testing::TempDir() + "/physical_units_snapshot.h5";
+  const Simulation::Output o = sim.output();
+  io::SnapshotFields f;
+  f.bedrock = o.bedrock.data();
+  f.sand = o.sand.data();
+  f.vegetation = o.vegetation.data();
+  f.wind = o.wind.data();
+  io::write_snapshot(path, m, f);
+  const io::Snapshot back = io::read_snapshot(path, true);
+  EXPECT_DOUBLE_EQ(back.meta.time_s, 3 * c.dt_s);
+}
+
 }  // namespace
 }  // namespace erg
