@@ -60,10 +60,9 @@ std::string progress_text(const erg::v1::Progress& p) {
                           ? static_cast<double>(p.step()) / static_cast<double>(p.total_steps())
                           : 0.0;
   char buf[200];
-  std::snprintf(buf, sizeof buf, "step %lld/%lld (%d%%, %.3g years), %.2f steps/s, ETA %s",
+  std::snprintf(buf, sizeof buf, "step %lld/%lld (%d%%), %.2f steps/s, ETA %s",
                 static_cast<long long>(p.step()), static_cast<long long>(p.total_steps()),
-                static_cast<int>(frac * 100), p.time_years(), p.steps_per_s(),
-                fmt_duration(p.eta_s()).c_str());
+                static_cast<int>(frac * 100), p.steps_per_s(), fmt_duration(p.eta_s()).c_str());
   return buf;
 }
 

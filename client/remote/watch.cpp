@@ -42,7 +42,7 @@ int watch_job(Remote& remote, const std::string& id, const std::string& command,
         case erg::v1::JobEvent::kProgress:
           last_progress = ev.progress();
           bar.update(ev.progress().step(), ev.progress().total_steps(), ev.progress().steps_per_s(),
-                     ev.progress().eta_s(), ev.progress().time_years());
+                     ev.progress().eta_s());
           break;
         case erg::v1::JobEvent::kStateChanged:
           if (is_final(ev.state_changed()))

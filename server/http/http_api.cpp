@@ -266,10 +266,7 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
         << html_escape(j.id()) << "</code></td><td>" << html_escape(j.spec().name())
         << "</td><td class=\"" << state << "\">" << state << "</td><td><div class=\"bar\"><div "
         << "style=\"width:" << static_cast<int>(frac * 100) << "%\"></div></div>" << p.step()
-        << " / " << p.total_steps();
-      char years[48];
-      std::snprintf(years, sizeof years, " (%.3g years)", p.time_years());
-      o << years << "</td><td>";
+        << " / " << p.total_steps() << "</td><td>";
       char rate[32];
       std::snprintf(rate, sizeof rate, "%.2f", p.steps_per_s());
       o << rate << "</td><td class=\"launcher\">" << html_escape(j.launcher()) << " "

@@ -697,7 +697,6 @@ void JobManager::on_event(const std::string& id, const erg::v1::WorkerEvent& ev,
         p.set_steps_per_s(q.steps_per_s());
         p.set_eta_s(q.eta_s());
         p.set_time_days(q.time_days());
-        p.set_time_years(q.time_years());
         metrics_.set_rate(id, r.job.tenant(), p.steps_per_s());
       } else {
         p.set_eta_s(0);
