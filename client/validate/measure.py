@@ -1,4 +1,4 @@
-"""Measurements of geomorphological laws on erg heightfields (issue 7).
+"""Measurements of geomorphological laws on erg heightfields.
 
 Every function works on plain numpy arrays laid out as erg's snapshots are
 ([ny][nx], row 0 = y = 0, periodic in x and y) so that tests/validate proves

@@ -689,7 +689,7 @@ def main():
     drift_law(rep, T, calibrate(rose, None, int(rjob["run"]["steps"])) if rjob else None,
               rjob["name"] if rjob else "")
 
-    # Sections in the order of issue 7; the body was written in measurement order.
+    # Sections in the order of the report; the body was written in measurement order.
     body = "\n".join(rep.lines)
     parts = ["## " + p for p in body.split("## ") if p.strip()]
     body = "\n".join(sorted(parts, key=lambda p: int(p[3:p.index(".")])))

@@ -1,4 +1,4 @@
-// The tiled worker (issue 3): the same job on 1, 2, 3, 4 and 6 MPI ranks
+// The tiled worker: the same job on 1, 2, 3, 4 and 6 MPI ranks
 // gives identical exact state and identical snapshot datasets after every
 // snapshot, in both transport modes, with abrasion, vegetation, events, a
 // wind rose and local wind primitives (over the seams, added and removed)
@@ -267,7 +267,7 @@ TEST(Tiling, SettledTilesWaitForASpreadingColumn) {
   EXPECT_EQ(cells[1][1], 0) << "no tile stayed settled: the test no longer covers waiting tiles";
 }
 
-// Issue 3: the exchange rounds per step must not grow with the number of
+// The exchange rounds per step must not grow with the number of
 // avalanching iterations. The column keeps sand moving through every
 // iteration of the first steps, so N = 12 and N = 48 both use the second,
 // wider round; refills every 4 iterations would send several times the
