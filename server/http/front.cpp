@@ -333,22 +333,27 @@ void HttpFront::request_complete_or_not(Conn& c) {
   cv_.notify_one();
 }
 
+// A TLS read or write that returned n <= 0: either it waits for the socket
+// (in whichever direction TLS asks, which can differ from the call's), or the
+// connection is over.
+void HttpFront::tls_blocked_or_closed(Conn& c, ssize_t n) {
+  const int err = SSL_get_error(c.ssl, static_cast<int>(n));
+  if (err == SSL_ERROR_WANT_READ || err == SSL_ERROR_WANT_WRITE) {
+    c.want_read = err == SSL_ERROR_WANT_READ;
+    c.want_write = err == SSL_ERROR_WANT_WRITE;
+    return watch(c);
+  }
+  ERR_clear_error();
+  close_conn(c.id);
+}
+
 void HttpFront::read_some(Conn& c) {
   char buf[16384];
   for (int round = 0; round < 64 && c.state == Conn::kReading; ++round) {
     ssize_t n;
     if (c.ssl) {
       n = SSL_read(c.ssl, buf, sizeof buf);
-      if (n <= 0) {
-        const int err = SSL_get_error(c.ssl, static_cast<int>(n));
-        if (err == SSL_ERROR_WANT_READ || err == SSL_ERROR_WANT_WRITE) {
-          c.want_read = err == SSL_ERROR_WANT_READ;
-          c.want_write = err == SSL_ERROR_WANT_WRITE;
-          return watch(c);
-        }
-        ERR_clear_error();
-        return close_conn(c.id);
-      }
+      if (n <= 0) return tls_blocked_or_closed(c, n);
     } else {
       n = ::recv(c.fd, buf, sizeof buf, 0);
       if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) {
@@ -372,16 +377,7 @@ void HttpFront::write_some(Conn& c) {
     if (c.ssl) {
       n = SSL_write(c.ssl, c.out.data() + c.out_pos,
                     static_cast<int>(std::min<size_t>(left, 1 << 20)));
-      if (n <= 0) {
-        const int err = SSL_get_error(c.ssl, static_cast<int>(n));
-        if (err == SSL_ERROR_WANT_READ || err == SSL_ERROR_WANT_WRITE) {
-          c.want_read = err == SSL_ERROR_WANT_READ;
-          c.want_write = err == SSL_ERROR_WANT_WRITE;
-          return watch(c);
-        }
-        ERR_clear_error();
-        return close_conn(c.id);
-      }
+      if (n <= 0) return tls_blocked_or_closed(c, n);
     } else {
       n = ::send(c.fd, c.out.data() + c.out_pos, left, MSG_NOSIGNAL);
       if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) {

@@ -76,6 +76,7 @@ class HttpFront {
   void on_event(Conn& c, std::uint32_t events);
   void read_some(Conn& c);
   void write_some(Conn& c);
+  void tls_blocked_or_closed(Conn& c, ssize_t n);
   void drain(Conn& c);
   void request_complete_or_not(Conn& c);
   void answer(Conn& c, std::string text);
