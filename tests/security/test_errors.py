@@ -2,7 +2,6 @@
 RESOURCE_EXHAUSTED whichever limit says no; a request that is not a valid
 protobuf is INVALID_ARGUMENT with a message (not INTERNAL, not empty); an id
 echoed back in an error is cut to 64 characters, whatever its length."""
-import socket
 import unittest
 
 import grpc
@@ -82,15 +81,7 @@ class Errors(ErgdTest):
         # Over HTTP too.
         for path in ("/api/jobs/%s" % ("j-" + "b" * 5000),
                      "/api/jobs/%s/preview.png" % ("j-" + "b" * 5000)):
-            with socket.create_connection(("127.0.0.1", self.ergd.http_port), timeout=10) as s:
-                s.sendall(("GET %s HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer %s\r\n"
-                           "Connection: close\r\n\r\n" % (path, ALICE)).encode())
-                answer = b""
-                while True:
-                    chunk = s.recv(65536)
-                    if not chunk:
-                        break
-                    answer += chunk
+            answer = self.ergd.raw_get(path, ALICE)
             self.assertEqual(int(answer.split(b" ", 2)[1]), 404, answer[:200])
             self.assertLess(len(answer.split(b"\r\n\r\n", 1)[1]), 200)
 

@@ -4,7 +4,6 @@ NOT_FOUND, exactly like one that does not exist; ids that try to walk the
 file system find nothing; NaN and infinities in a spec are refused naming
 the field; concurrent submits with one idempotency key make one job."""
 import math
-import socket
 import threading
 import unittest
 import urllib.error
@@ -143,15 +142,7 @@ class Probes(ErgdTest):
         for path in ("/api/jobs/../../ergd.sqlite", "/api/jobs/..%2F..%2Fergd.sqlite",
                      "/api/jobs/%s/../../../ergd.sqlite" % self.job.id,
                      "/api/jobs/%s%%2Frun%%2Fsnapshots/preview.png" % self.job.id):
-            with socket.create_connection(("127.0.0.1", self.ergd.http_port), timeout=10) as s:
-                s.sendall(("GET %s HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer %s\r\n"
-                           "Connection: close\r\n\r\n" % (path, ALICE)).encode())
-                answer = b""
-                while True:
-                    chunk = s.recv(65536)
-                    if not chunk:
-                        break
-                    answer += chunk
+            answer = self.ergd.raw_get(path, ALICE)
             status = int(answer.split(b" ", 2)[1])
             self.assertIn(status, (400, 404), path)
             self.assertNotIn(b"SQLite", answer)

@@ -107,6 +107,19 @@ class Ergd:
     def http(self):
         return "http://127.0.0.1:%d" % self.http_port
 
+    def raw_get(self, path, token):
+        """GET path as sent, byte for byte (no client-side normalisation of
+        the path), and the whole answer once ergd closes the connection."""
+        with socket.create_connection(("127.0.0.1", self.http_port), timeout=10) as s:
+            s.sendall(("GET %s HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer %s\r\n"
+                       "Connection: close\r\n\r\n" % (path, token)).encode())
+            answer = b""
+            while True:
+                chunk = s.recv(65536)
+                if not chunk:
+                    return answer
+                answer += chunk
+
     def start(self):
         with open(self.log, "a") as logf:
             self.proc = subprocess.Popen(
