@@ -33,6 +33,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include "backend/cpu/cpu_backend.h"
@@ -134,194 +135,277 @@ void dilate(const std::vector<std::uint8_t>& in, std::vector<std::uint8_t>& out,
     }
 }
 
+// The layers an avalanche reads and moves, and its work arrays
+// (CpuBackend's fields).
+struct AvalancheLayers {
+  Field<units_t>& bedrock;
+  Field<units_t>& sand;
+  const Field<float>& obstacles;
+  const Field<float>& tan_l;  // sand repose tangents
+  Field<float>& h;            // heights in metres (h_a)
+  Field<float>& frac;         // each donor's fraction f
+};
+
+// One avalanche of sand or bedrock over `iterations` iterations, in rounds
+// (see the top of this file): the round boundaries, the two passes and the
+// segment masks that say where each pass must look.
+class AvalancheSweep {
+ public:
+  AvalancheSweep(const Model& m, const TileGeom& g, int threads, dist::Exchange& ex,
+                 const AvalancheLayers& f, bool bedrock, int iterations)
+      : m_(m),
+        g_(g),
+        threads_(threads),
+        ex_(ex),
+        f_(f),
+        bedrock_(bedrock),
+        iterations_(iterations),
+        st_(g.pitch),
+        // Iteration j of a round of R runs pass 2 on the tile grown by
+        // 2 (R - j) cells and pass 1 on one more; a round starts at e = 2R,
+        // within the ghosts the exchange before reptation (or the refill of
+        // the round) filled. The segment masks cover the widest round,
+        // E = 2 max(R).
+        widest_(2 * m.rounds.widest(iterations)),
+        rows_(g.ny + 2 * widest_),
+        segs_((g.nx + 2 * widest_ + kSegment - 1) / kSegment),
+        // Segment (r, s) covers row r - E, columns [s * 64 - E, (s + 1) * 64 - E).
+        visit_(static_cast<size_t>(rows_) * segs_, 1),
+        positive_(visit_.size(), 0),
+        exchange_(visit_.size(), 0),
+        changed_(visit_.size(), 0),
+        target_(bedrock ? f.bedrock : f.sand) {}
+
+  // The number of iterations that moved something; `settled`: no donor is
+  // left (nothing exceeds repose).
+  int run(bool* settled) {
+    const int nx = g_.nx, ny = g_.ny;
+    round_ = m_.rounds.of(1, iterations_);
+    e_ = 2 * round_.length;
+    heights(-e_, ny + e_, -e_, nx + e_);
+    int moved_iterations = 0;
+    // With several tiles a tile that finds nothing left to move still takes
+    // part in the refills until every tile has found so: a neighbour's sand
+    // may yet flow across its edge in a later round.
+    const bool alone = ex_.tiles() == 1;
+    bool stopped_here = false;  // nothing moves here before the round ends
+    bool no_donors = false;     // ... nor in any later step on this terrain
+    for (int it = 1; it <= iterations_; ++it) {
+      const float kc = avalanching::kc_for(it, iterations_, m_.kc, m_.kc_damped);
+      if (it > 1 && it == round_.first + round_.length) {
+        if (!alone) {
+          if (!ex_.any(!stopped_here)) break;
+          stopped_here = false;
+        }
+        next_round(it);
+      }
+      if (stopped_here) continue;           // until the round ends
+      const int j = it - round_.first + 1;  // iteration within the round
+      const int grow1 = 2 * (round_.length - j) + 1, grow2 = grow1 - 1;  // pass 1, pass 2
+      no_donors = !fractions(kc, grow1);
+      if (no_donors) {
+        // Every f is 0: nothing exceeds repose (or nothing is available),
+        // for any k_c. This and every later iteration are the identity.
+        stopped_here = true;
+        if (alone) break;
+        continue;
+      }
+      if (!exchanges(grow2)) {
+        // Donors exist but every share rounds to 0. Only a larger k_c later
+        // could move them.
+        if (!larger_kc_later(it, kc)) {
+          stopped_here = true;
+          if (alone) break;
+          continue;
+        }
+        visit_ = positive_;
+        if (m_.avalanche_everywhere) std::fill(visit_.begin(), visit_.end(), 1);
+        continue;
+      }
+      ++moved_iterations;
+      new_heights(grow2);
+      next_visit();
+    }
+    if (settled) *settled = no_donors;
+    return moved_iterations;
+  }
+
+ private:
+  // Heights in metres on rows [y0, y1) and columns [x0, x1).
+  void heights(int y0, int y1, int x0, int x1) {
+#pragma omp parallel for num_threads(threads_) schedule(static)
+    for (int y = y0; y < y1; ++y) height_row(y, x0, x1);
+  }
+
+  void height_row(int y, int x0, int x1) {
+    const units_t* b = f_.bedrock.row(y);
+    const units_t* s = f_.sand.row(y);
+    const float* o = f_.obstacles.row(y);
+    float* h = f_.h.row(y);
+    for (int x = x0; x < x1; ++x)
+      h[x] = obstacles::avalanche_height(units_to_m(bedrock_ ? b[x] : b[x] + s[x]), o[x]);
+  }
+
+  // A new round at iteration `it`: refill the ghosts of the layer that
+  // moved, recompute their heights, and revisit every cell that reads them.
+  void next_round(int it) {
+    const int nx = g_.nx, ny = g_.ny;
+    round_ = m_.rounds.of(it, iterations_);
+    const int e_last = e_;
+    e_ = 2 * round_.length;
+    ex_.fill(target_, e_ + 1);
+    if (e_ <= e_last) {
+      heights(-e_, 0, -e_, nx + e_);
+      heights(ny, ny + e_, -e_, nx + e_);
+      heights(0, ny, -e_, 0);
+      heights(0, ny, nx, nx + e_);
+      for (int r = 0; r < rows_; ++r)
+        for (int s = 0; s < segs_; ++s) {
+          const int y = r - widest_, x0 = s * kSegment - widest_, x1 = x0 + kSegment;
+          const bool near_edge = y < e_ + 2 || y >= ny - e_ - 2 || x0 < e_ + 2 || x1 > nx - e_ - 2;
+          if (near_edge) visit_[static_cast<size_t>(r) * segs_ + s] = 1;
+        }
+    } else {
+      // A wider round (the rest of the iterations in one, several tiles):
+      // the other layer's ghosts too, and every cell.
+      if (!bedrock_) ex_.fill(f_.bedrock, e_ + 1);
+      heights(-e_, ny + e_, -e_, nx + e_);
+      std::fill(visit_.begin(), visit_.end(), 1);
+    }
+  }
+
+  // Columns [x0, x1) of segment s clipped to the tile grown by `grow`.
+  std::pair<int, int> columns(int s, int grow) const {
+    return {std::max(s * kSegment - widest_, -grow),
+            std::min((s + 1) * kSegment - widest_, g_.nx + grow)};
+  }
+
+  // Pass 1: fractions where heights may have changed, or donors remain, on
+  // the tile grown by `grow1`. Whether any f > 0.
+  bool fractions(float kc, int grow1) {
+    const int ny = g_.ny;
+    const float tan_b = m_.tan_l_bedrock;
+    bool any_positive = false;
+#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_positive)
+    for (int r = 0; r < rows_; ++r) {
+      const int y = r - widest_;
+      for (int s = 0; s < segs_; ++s) {
+        const size_t k = static_cast<size_t>(r) * segs_ + s;
+        positive_[k] = 0;
+        if (!visit_[k] || y < -grow1 || y >= ny + grow1) continue;
+        const auto [x0, x1] = columns(s, grow1);
+        if (x0 >= x1) continue;
+        positive_[k] =
+            bedrock_
+                ? fraction_segment<true>(f_.h.row(y), nullptr, tan_b, nullptr, f_.obstacles.row(y),
+                                         kc, st_, x0, x1, f_.frac.row(y))
+                : fraction_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f, f_.sand.row(y),
+                                          f_.obstacles.row(y), kc, st_, x0, x1, f_.frac.row(y));
+        any_positive = any_positive || positive_[k];
+      }
+    }
+    return any_positive;
+  }
+
+  // Pass 2: exchanges within one cell of a donor (it reads f only inside
+  // this iteration's pass-1 region), on the tile grown by `grow2`. Whether
+  // any unit moved.
+  bool exchanges(int grow2) {
+    const int ny = g_.ny;
+    const float tan_b = m_.tan_l_bedrock;
+    dilate(positive_, exchange_, rows_, segs_, 1);
+    if (m_.avalanche_everywhere) std::fill(exchange_.begin(), exchange_.end(), 1);
+    bool any_change = false;
+#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_change)
+    for (int r = 0; r < rows_; ++r) {
+      const int y = r - widest_;
+      units_t gain[kSegment], loss[kSegment];
+      for (int s = 0; s < segs_; ++s) {
+        const size_t k = static_cast<size_t>(r) * segs_ + s;
+        changed_[k] = 0;
+        if (!exchange_[k] || y < -grow2 || y >= ny + grow2) continue;
+        const auto [x0, x1] = columns(s, grow2);
+        if (x0 >= x1) continue;
+        const bool active = bedrock_
+                                ? exchange_segment<true>(f_.h.row(y), nullptr, tan_b,
+                                                         f_.frac.row(y), st_, x0, x1, gain, loss)
+                                : exchange_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f,
+                                                          f_.frac.row(y), st_, x0, x1, gain, loss);
+        if (!active) continue;
+        apply(y, x0, x1, gain, loss);
+        changed_[k] = 1;
+        any_change = true;
+      }
+    }
+    return any_change;
+  }
+
+  // Pass 2 reads only heights and fractions, so the layers can be updated
+  // in place.
+  void apply(int y, int x0, int x1, const units_t* gain, const units_t* loss) {
+    units_t* t = target_.row(y);
+    units_t* sd = f_.sand.row(y);
+    if (bedrock_ && m_.bedrock_to_sand) {
+      // Fallen rock breaks into sand where it lands [N24 3.8].
+      for (int x = x0; x < x1; ++x) {
+        t[x] -= loss[x - x0];
+        sd[x] += gain[x - x0];
+      }
+    } else {
+      for (int x = x0; x < x1; ++x) t[x] += gain[x - x0] - loss[x - x0];
+    }
+  }
+
+  bool larger_kc_later(int it, float kc) const {
+    bool larger = false;
+    for (int j = it + 1; j <= iterations_; ++j)
+      larger |= avalanching::kc_for(j, iterations_, m_.kc, m_.kc_damped) > kc;
+    return larger;
+  }
+
+  // New heights where layers changed (after pass 2: it read the old ones).
+  void new_heights(int grow2) {
+#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4)
+    for (int r = 0; r < rows_; ++r) {
+      const int y = r - widest_;
+      for (int s = 0; s < segs_; ++s) {
+        if (!changed_[static_cast<size_t>(r) * segs_ + s]) continue;
+        const auto [x0, x1] = columns(s, grow2);
+        height_row(y, x0, x1);
+      }
+    }
+  }
+
+  // Next pass 1: within two cells of a change, and wherever donors remain
+  // (k_c may change their f).
+  void next_visit() {
+    dilate(changed_, visit_, rows_, segs_, 2);
+    for (size_t k = 0; k < visit_.size(); ++k)
+      visit_[k] |= positive_[k] | static_cast<std::uint8_t>(m_.avalanche_everywhere);
+  }
+
+  const Model& m_;
+  const TileGeom& g_;
+  const int threads_;
+  dist::Exchange& ex_;
+  const AvalancheLayers f_;
+  const bool bedrock_;
+  const int iterations_;
+  const Stencil st_;
+  const int widest_, rows_, segs_;
+  std::vector<std::uint8_t> visit_, positive_, exchange_, changed_;
+  Field<units_t>& target_;  // the layer that moves
+  AvalancheRounds::Round round_;
+  int e_ = 0;  // the round's ghost width: 2 R
+};
+
 }  // namespace
 
 int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
   if (settled) *settled = false;
   if (iterations <= 0) return 0;
-  const Stencil st(g_.pitch);
-  const int nx = g_.nx, ny = g_.ny;
-  // Iteration j of a round of R runs pass 2 on the tile grown by 2 (R - j)
-  // cells and pass 1 on one more; a round starts at e = 2R, within the ghosts
-  // the exchange before reptation (or the refill of the round) filled. The
-  // segment masks cover the widest round, E = 2 max(R).
-  const int widest = 2 * m_.rounds.widest(iterations);
-  const int rows = ny + 2 * widest, cols = nx + 2 * widest;
-  const int segs = (cols + kSegment - 1) / kSegment;
-  const size_t nseg = static_cast<size_t>(rows) * segs;
-  Field<units_t>& target = bedrock ? bedrock_ : sand_;
-  const float tan_b = m_.tan_l_bedrock;
-
-  // Heights in metres on rows [y0, y1) and columns [x0, x1).
-  auto heights = [&](int y0, int y1, int x0, int x1) {
-#pragma omp parallel for num_threads(threads_) schedule(static)
-    for (int y = y0; y < y1; ++y) {
-      const units_t* b = bedrock_.row(y);
-      const units_t* s = sand_.row(y);
-      const float* o = obstacles_.row(y);
-      float* h = h_a_.row(y);
-      for (int x = x0; x < x1; ++x)
-        h[x] = obstacles::avalanche_height(units_to_m(bedrock ? b[x] : b[x] + s[x]), o[x]);
-    }
-  };
-  AvalancheRounds::Round round = m_.rounds.of(1, iterations);
-  int e = 2 * round.length;
-  heights(-e, ny + e, -e, nx + e);
-
-  // Segment (r, s) covers row r - E, columns [s * 64 - E, (s + 1) * 64 - E).
-  std::vector<std::uint8_t> visit(nseg, 1), positive(nseg, 0), exchange(nseg, 0), changed(nseg, 0);
-  int moved_iterations = 0;
-  // With several tiles a tile that finds nothing left to move still takes
-  // part in the refills until every tile has found so: a neighbour's sand
-  // may yet flow across its edge in a later round.
-  const bool alone = ex_.tiles() == 1;
-  bool stopped_here = false;  // nothing moves here before the round ends
-  bool no_donors = false;     // ... nor in any later step on this terrain
-  for (int it = 1; it <= iterations; ++it) {
-    const float kc = avalanching::kc_for(it, iterations, m_.kc, m_.kc_damped);
-    if (it > 1 && it == round.first + round.length) {
-      if (!alone) {
-        if (!ex_.any(!stopped_here)) break;
-        stopped_here = false;
-      }
-      // A new round: refill the ghosts of the layer that moved, recompute
-      // their heights, and revisit every cell that reads them.
-      round = m_.rounds.of(it, iterations);
-      const int e_last = e;
-      e = 2 * round.length;
-      ex_.fill(target, e + 1);
-      if (e <= e_last) {
-        heights(-e, 0, -e, nx + e);
-        heights(ny, ny + e, -e, nx + e);
-        heights(0, ny, -e, 0);
-        heights(0, ny, nx, nx + e);
-        for (int r = 0; r < rows; ++r)
-          for (int s = 0; s < segs; ++s) {
-            const int y = r - widest, x0 = s * kSegment - widest, x1 = x0 + kSegment;
-            const bool near_edge = y < e + 2 || y >= ny - e - 2 || x0 < e + 2 || x1 > nx - e - 2;
-            if (near_edge) visit[static_cast<size_t>(r) * segs + s] = 1;
-          }
-      } else {
-        // A wider round (the rest of the iterations in one, several tiles):
-        // the other layer's ghosts too, and every cell.
-        if (!bedrock) ex_.fill(bedrock_, e + 1);
-        heights(-e, ny + e, -e, nx + e);
-        std::fill(visit.begin(), visit.end(), 1);
-      }
-    }
-    if (stopped_here) continue;                                       // until the round ends
-    const int j = it - round.first + 1;                               // iteration within the round
-    const int grow1 = 2 * (round.length - j) + 1, grow2 = grow1 - 1;  // pass 1, pass 2
-
-    // Pass 1: fractions where heights may have changed, or donors remain.
-    bool any_positive = false;
-#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_positive)
-    for (int r = 0; r < rows; ++r) {
-      const int y = r - widest;
-      for (int s = 0; s < segs; ++s) {
-        const size_t k = static_cast<size_t>(r) * segs + s;
-        positive[k] = 0;
-        if (!visit[k] || y < -grow1 || y >= ny + grow1) continue;
-        const int x0 = std::max(s * kSegment - widest, -grow1);
-        const int x1 = std::min((s + 1) * kSegment - widest, nx + grow1);
-        if (x0 >= x1) continue;
-        positive[k] =
-            bedrock ? fraction_segment<true>(h_a_.row(y), nullptr, tan_b, nullptr,
-                                             obstacles_.row(y), kc, st, x0, x1, frac_.row(y))
-                    : fraction_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f, sand_.row(y),
-                                              obstacles_.row(y), kc, st, x0, x1, frac_.row(y));
-        any_positive = any_positive || positive[k];
-      }
-    }
-    no_donors = !any_positive;
-    if (no_donors) {
-      // Every f is 0: nothing exceeds repose (or nothing is available), for
-      // any k_c. This and every later iteration are the identity.
-      stopped_here = true;
-      if (alone) break;
-      continue;
-    }
-
-    // Pass 2: exchanges within one cell of a donor (it reads f only inside
-    // this iteration's pass-1 region).
-    dilate(positive, exchange, rows, segs, 1);
-    if (m_.avalanche_everywhere) std::fill(exchange.begin(), exchange.end(), 1);
-    bool any_change = false;
-#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_change)
-    for (int r = 0; r < rows; ++r) {
-      const int y = r - widest;
-      units_t gain[kSegment], loss[kSegment];
-      for (int s = 0; s < segs; ++s) {
-        const size_t k = static_cast<size_t>(r) * segs + s;
-        changed[k] = 0;
-        if (!exchange[k] || y < -grow2 || y >= ny + grow2) continue;
-        const int x0 = std::max(s * kSegment - widest, -grow2);
-        const int x1 = std::min((s + 1) * kSegment - widest, nx + grow2);
-        if (x0 >= x1) continue;
-        const bool active = bedrock ? exchange_segment<true>(h_a_.row(y), nullptr, tan_b,
-                                                             frac_.row(y), st, x0, x1, gain, loss)
-                                    : exchange_segment<false>(h_a_.row(y), tan_l_.row(y), 0.0f,
-                                                              frac_.row(y), st, x0, x1, gain, loss);
-        if (!active) continue;
-        // Pass 2 reads only heights and fractions, so the layers can be
-        // updated in place.
-        units_t* t = target.row(y);
-        units_t* sd = sand_.row(y);
-        if (bedrock && m_.bedrock_to_sand) {
-          // Fallen rock breaks into sand where it lands [N24 3.8].
-          for (int x = x0; x < x1; ++x) {
-            t[x] -= loss[x - x0];
-            sd[x] += gain[x - x0];
-          }
-        } else {
-          for (int x = x0; x < x1; ++x) t[x] += gain[x - x0] - loss[x - x0];
-        }
-        changed[k] = 1;
-        any_change = true;
-      }
-    }
-    if (!any_change) {
-      // Donors exist but every share rounds to 0. Only a larger k_c later
-      // could move them.
-      bool larger_kc_later = false;
-      for (int j = it + 1; j <= iterations; ++j)
-        larger_kc_later |= avalanching::kc_for(j, iterations, m_.kc, m_.kc_damped) > kc;
-      if (!larger_kc_later) {
-        stopped_here = true;
-        if (alone) break;
-        continue;
-      }
-      visit = positive;
-      if (m_.avalanche_everywhere) std::fill(visit.begin(), visit.end(), 1);
-      continue;
-    }
-    ++moved_iterations;
-
-    // New heights where layers changed (after pass 2: it read the old ones).
-#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4)
-    for (int r = 0; r < rows; ++r) {
-      const int y = r - widest;
-      for (int s = 0; s < segs; ++s) {
-        if (!changed[static_cast<size_t>(r) * segs + s]) continue;
-        const int x0 = std::max(s * kSegment - widest, -grow2);
-        const int x1 = std::min((s + 1) * kSegment - widest, nx + grow2);
-        const units_t* b = bedrock_.row(y);
-        const units_t* sd = sand_.row(y);
-        const float* o = obstacles_.row(y);
-        float* h = h_a_.row(y);
-        for (int x = x0; x < x1; ++x)
-          h[x] = obstacles::avalanche_height(units_to_m(bedrock ? b[x] : b[x] + sd[x]), o[x]);
-      }
-    }
-
-    // Next pass 1: within two cells of a change, and wherever donors remain
-    // (k_c may change their f).
-    dilate(changed, visit, rows, segs, 2);
-    for (size_t k = 0; k < nseg; ++k)
-      visit[k] |= positive[k] | static_cast<std::uint8_t>(m_.avalanche_everywhere);
-  }
-  if (settled) *settled = no_donors;
-  return moved_iterations;
+  const AvalancheLayers layers{bedrock_, sand_, obstacles_, tan_l_, h_a_, frac_};
+  return AvalancheSweep(m_, g_, threads_, ex_, layers, bedrock, iterations).run(settled);
 }
 
 int CpuBackend::avalanche_sand() {
