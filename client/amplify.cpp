@@ -11,6 +11,7 @@
 
 #include "commands.h"
 #include "io/io.h"
+#include "io/run_files.h"
 
 namespace erg::client {
 
@@ -23,9 +24,7 @@ std::string snapshot_path(const std::string& dir, long long step) {
   if (fs::is_regular_file(dir)) return dir;
   const fs::path snaps = fs::path(dir) / "snapshots";
   if (step >= 0) {
-    char name[64];
-    std::snprintf(name, sizeof name, "step_%08lld.h5", step);
-    return (snaps / name).string();
+    return (snaps / (step_name(step) + ".h5")).string();
   }
   std::string latest;
   std::error_code ec;

@@ -14,6 +14,9 @@
 #include <stdexcept>
 #include <vector>
 
+#include "io/atomic_file.h"
+#include "io/run_files.h"
+
 namespace erg::client {
 
 namespace fs = std::filesystem;
@@ -93,9 +96,7 @@ bool is_plain_file_name(const std::string& name) {
 }
 
 std::string snapshot_file_name(std::int64_t step) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "step_%08lld.h5", static_cast<long long>(step));
-  return buf;
+  return step_name(step) + ".h5";
 }
 
 bool file_has_sha256(const std::string& path, const std::string& sha256) {
@@ -210,7 +211,7 @@ void PartialDownload::finish() {
   if (!complete())
     throw std::runtime_error(name_ + ": have " + std::to_string(bytes_) + " of " +
                              std::to_string(size_) + " bytes");
-  const bool flushed = std::fflush(part_) == 0 && ::fsync(::fileno(part_)) == 0;
+  const bool flushed = std::fflush(part_) == 0;  // synced by replace_durably below
   close_part();
   if (!flushed) throw std::runtime_error("cannot write " + part_path() + ": " + errno_text());
   const std::string got = hash_->hex();
@@ -222,17 +223,8 @@ void PartialDownload::finish() {
                              ", the " + std::to_string(bytes_) + " bytes received hash to " + got +
                              "; deleted " + part_path() + " (run erg fetch again)");
   }
-  fs::rename(part_path(), final_path(), ec);
-  if (ec)
-    throw std::runtime_error("cannot rename " + part_path() + " to " + final_path() + ": " +
-                             ec.message());
+  io::replace_durably(part_path(), final_path());
   fs::remove(sha_path(), ec);
-  // Make the rename durable too.
-  const int d = ::open(dir_.empty() ? "." : dir_.c_str(), O_RDONLY | O_DIRECTORY);
-  if (d >= 0) {
-    (void)::fsync(d);
-    ::close(d);
-  }
 }
 
 }  // namespace erg::client

@@ -10,8 +10,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 
 #include "commands.h"
+#include "io/atomic_file.h"
 #include "progress_bar.h"
 #include "remote/args.h"
 #include "remote/common.h"
@@ -25,160 +27,237 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// Downloads the snapshot of `step` into `dir`; returns the exit code.
-// `connected`: ergd has answered this command already (see watch_job).
-int fetch_step(Remote& remote, const std::string& id, std::int64_t step, const std::string& dir,
-               bool connected) {
-  // The .part to resume is looked for under ergd's usual name; when ergd
-  // names the file otherwise, the stream is opened again with that name.
-  std::string name = snapshot_file_name(step);
-  bool existing_checked = false;
-  int renamed = 0;
-  RetryBudget retry;
-  for (;;) {
-    std::unique_ptr<PartialDownload> dl;
-    try {
-      dl = std::make_unique<PartialDownload>(dir, name);
-    } catch (const std::exception& e) {
-      std::cerr << "erg: fetch: " << e.what() << "\n";
-      return kExitError;
-    }
-    std::error_code ec;
-    // A finished file is checked against the server's sha256 first (the
-    // first message carries it; the rest is not read).
-    const bool check_existing = !existing_checked && fs::exists(dl->final_path(), ec);
-    const std::int64_t offset = check_existing ? 0 : dl->resume_offset();
+// One StreamSnapshot call: its context, its reader and the chunk last read.
+struct SnapshotStream {
+  grpc::ClientContext ctx;
+  std::unique_ptr<grpc::ClientReader<erg::v1::SnapshotChunk>> reader;
+  erg::v1::SnapshotChunk chunk;
 
+  SnapshotStream(Remote& remote, const std::string& id, std::int64_t step, std::int64_t offset) {
     erg::v1::StreamSnapshotRequest req;
     req.set_id(id);
     req.set_step(step);
     req.set_offset(offset);
-    grpc::ClientContext ctx;
     remote.prepare(ctx);
-    auto reader = remote.stub().StreamSnapshot(&ctx, req);
-    erg::v1::SnapshotChunk chunk;
-    auto stop = [&] {
-      ctx.TryCancel();
-      (void)reader->Finish();
-    };
-    bool got_first = reader->Read(&chunk);
-    if (got_first) {
-      connected = true;
-      if (chunk.step() != step) {
-        stop();
-        std::cerr << "erg: fetch: ergd sent step " << chunk.step() << " for step " << step << "\n";
-        return kExitError;
-      }
-      if (!is_plain_file_name(chunk.name())) {
-        stop();
-        std::cerr << "erg: fetch: refusing ergd's file name '" << chunk.name() << "'\n";
-        return kExitError;
-      }
-      if (chunk.name() != name) {
-        stop();
-        if (++renamed > 2) {
-          std::cerr << "erg: fetch: ergd keeps renaming step " << step << "\n";
-          return kExitError;
-        }
-        name = chunk.name();
-        continue;
-      }
-      if (check_existing) {
-        stop();
-        existing_checked = true;
-        if (file_has_sha256(dl->final_path(), chunk.sha256())) {
-          std::cerr << "erg: " << dl->final_path() << " already present and verified\n";
-          std::cout << dl->final_path() << std::endl;
-          return kExitOk;
-        }
-        std::cerr << "erg: " << dl->final_path()
-                  << " differs from ergd's snapshot; downloading it again\n";
-        continue;
-      }
-      PartialDownload::Start start;
-      try {
-        start = dl->start(offset, chunk.size(), chunk.sha256());
-      } catch (const std::exception& e) {
-        stop();
-        std::cerr << "erg: fetch: " << e.what() << "\n";
-        return kExitError;
-      }
-      if (dl->discarded())
-        std::cerr << "erg: discarded " << dl->part_path()
-                  << " (it belongs to another file); starting again\n";
-      if (start == PartialDownload::Start::kRestart) {
-        stop();
-        continue;
-      }
-      if (offset > 0) std::cerr << "erg: resuming " << name << " at byte " << offset << "\n";
+    reader = remote.stub().StreamSnapshot(&ctx, req);
+  }
+  bool read() { return reader->Read(&chunk); }
+  // Ends the call early (the rest is not read).
+  void stop() {
+    ctx.TryCancel();
+    (void)reader->Finish();
+  }
+};
+
+// How one attempt at a snapshot ended: with the command's exit code, or
+// with a reason to open the stream again.
+struct Attempt {
+  bool again = false;
+  int code = kExitOk;
+  static Attempt retry() { return {true, kExitOk}; }
+  static Attempt exit(int code) { return {false, code}; }
+};
+
+// Downloads the snapshot of `step` into `dir`, one stream at a time until
+// it is whole, verified, or cannot be had.
+class StepFetch {
+ public:
+  // `connected`: ergd has answered this command already (see watch_job).
+  StepFetch(Remote& remote, std::string id, std::int64_t step, std::string dir, bool connected)
+      : remote_(remote),
+        id_(std::move(id)),
+        step_(step),
+        dir_(std::move(dir)),
+        connected_(connected),
+        // The .part to resume is looked for under ergd's usual name; when
+        // ergd names the file otherwise, the stream is opened again with that name.
+        name_(snapshot_file_name(step)) {}
+
+  int run() {
+    for (;;) {
+      const Attempt a = attempt();
+      if (!a.again) return a.code;
     }
-    // The data.
-    set_interrupt_note("interrupted; " + dl->part_path() + " is kept, erg fetch resumes it");
+  }
+
+ private:
+  Attempt attempt() {
+    std::unique_ptr<PartialDownload> dl;
+    try {
+      dl = std::make_unique<PartialDownload>(dir_, name_);
+    } catch (const std::exception& e) {
+      std::cerr << "erg: fetch: " << e.what() << "\n";
+      return Attempt::exit(kExitError);
+    }
+    std::error_code ec;
+    // A finished file is checked against the server's sha256 first (the
+    // first message carries it; the rest is not read).
+    const bool check_existing = !existing_checked_ && fs::exists(dl->final_path(), ec);
+    const std::int64_t offset = check_existing ? 0 : dl->resume_offset();
+    SnapshotStream st(remote_, id_, step_, offset);
+    const bool got_first = st.read();
+    if (got_first) {
+      connected_ = true;
+      if (const auto a = on_first_chunk(st, *dl, check_existing, offset)) return *a;
+    }
+    if (!receive(st, *dl, got_first, offset)) {
+      st.stop();
+      return Attempt::exit(kExitError);
+    }
+    return on_end(st, *dl, offset);
+  }
+
+  // The first message names the file and its sha256: an answer for another
+  // step or file, a finished file to verify, or where the data starts.
+  std::optional<Attempt> on_first_chunk(SnapshotStream& st, PartialDownload& dl,
+                                        bool check_existing, std::int64_t offset) {
+    const erg::v1::SnapshotChunk& chunk = st.chunk;
+    if (chunk.step() != step_) {
+      st.stop();
+      std::cerr << "erg: fetch: ergd sent step " << chunk.step() << " for step " << step_ << "\n";
+      return Attempt::exit(kExitError);
+    }
+    if (!is_plain_file_name(chunk.name())) {
+      st.stop();
+      std::cerr << "erg: fetch: refusing ergd's file name '" << chunk.name() << "'\n";
+      return Attempt::exit(kExitError);
+    }
+    if (chunk.name() != name_) {
+      st.stop();
+      if (++renamed_ > 2) {
+        std::cerr << "erg: fetch: ergd keeps renaming step " << step_ << "\n";
+        return Attempt::exit(kExitError);
+      }
+      name_ = chunk.name();
+      return Attempt::retry();
+    }
+    if (check_existing) return verify_existing(st, dl);
+    return start_download(st, dl, offset);
+  }
+
+  // A file already at the final name: kept when its sha256 is ergd's.
+  Attempt verify_existing(SnapshotStream& st, PartialDownload& dl) {
+    st.stop();
+    existing_checked_ = true;
+    if (file_has_sha256(dl.final_path(), st.chunk.sha256())) {
+      std::cerr << "erg: " << dl.final_path() << " already present and verified\n";
+      std::cout << dl.final_path() << std::endl;
+      return Attempt::exit(kExitOk);
+    }
+    std::cerr << "erg: " << dl.final_path()
+              << " differs from ergd's snapshot; downloading it again\n";
+    return Attempt::retry();
+  }
+
+  // The .part continues from `offset`, or starts afresh (then the stream
+  // is opened again at 0).
+  std::optional<Attempt> start_download(SnapshotStream& st, PartialDownload& dl,
+                                        std::int64_t offset) {
+    PartialDownload::Start start;
+    try {
+      start = dl.start(offset, st.chunk.size(), st.chunk.sha256());
+    } catch (const std::exception& e) {
+      st.stop();
+      std::cerr << "erg: fetch: " << e.what() << "\n";
+      return Attempt::exit(kExitError);
+    }
+    if (dl.discarded())
+      std::cerr << "erg: discarded " << dl.part_path()
+                << " (it belongs to another file); starting again\n";
+    if (start == PartialDownload::Start::kRestart) {
+      st.stop();
+      return Attempt::retry();
+    }
+    if (offset > 0) std::cerr << "erg: resuming " << name_ << " at byte " << offset << "\n";
+    return std::nullopt;
+  }
+
+  // The data, appended to the .part with a progress bar; false when it
+  // cannot be written.
+  bool receive(SnapshotStream& st, PartialDownload& dl, bool got_first, std::int64_t offset) {
+    set_interrupt_note("interrupted; " + dl.part_path() + " is kept, erg fetch resumes it");
     ProgressBar bar;
     const double t0 = monotonic_seconds();
     double last_draw = -1;
-    bool bad = false;
     if (got_first) {
       do {
         try {
-          dl->append(chunk.offset(), chunk.data().data(), chunk.data().size());
+          dl.append(st.chunk.offset(), st.chunk.data().data(), st.chunk.data().size());
         } catch (const std::exception& e) {
           bar.finish();
           std::cerr << "erg: fetch: " << e.what() << "\n";
-          bad = true;
-          break;
+          return false;
         }
-        if (!chunk.data().empty()) retry.reset();
+        if (!st.chunk.data().empty()) retry_.reset();
         const double now = monotonic_seconds();
-        if (now - last_draw > 0.2 || dl->complete()) {
-          const double rate = now > t0 ? static_cast<double>(dl->bytes() - offset) / (now - t0) : 0;
-          bar.update_bytes(name, dl->bytes(), dl->size(), rate);
+        if (now - last_draw > 0.2 || dl.complete()) {
+          const double rate = now > t0 ? static_cast<double>(dl.bytes() - offset) / (now - t0) : 0;
+          bar.update_bytes(name_, dl.bytes(), dl.size(), rate);
           last_draw = now;
         }
-      } while (reader->Read(&chunk));
+      } while (st.read());
     }
-    if (bad) {
-      stop();
-      return kExitError;
-    }
-    const grpc::Status status = reader->Finish();
     bar.finish();
     set_interrupt_note("");
-    if (status.ok() && dl->complete()) {
+    return true;
+  }
+
+  // The stream's end: the file whole, a fresh start, an error, or a break
+  // to resume from after a wait.
+  Attempt on_end(SnapshotStream& st, PartialDownload& dl, std::int64_t offset) {
+    const grpc::Status status = st.reader->Finish();
+    if (status.ok() && dl.complete()) {
       try {
-        dl->finish();
+        dl.finish();
       } catch (const std::exception& e) {
         std::cerr << "erg: fetch: " << e.what() << "\n";
-        return kExitError;
+        return Attempt::exit(kExitError);
       }
-      std::cout << dl->final_path() << std::endl;
-      return kExitOk;
+      std::cout << dl.final_path() << std::endl;
+      return Attempt::exit(kExitOk);
     }
     if (status.error_code() == grpc::StatusCode::OUT_OF_RANGE && offset > 0) {
       // ergd cannot continue from the .part's size: start afresh.
-      std::cerr << "erg: " << name << ": ergd cannot resume at byte " << offset
+      std::cerr << "erg: " << name_ << ": ergd cannot resume at byte " << offset
                 << "; starting again\n";
-      fs::remove(dl->part_path(), ec);
-      continue;
+      std::error_code ec;
+      fs::remove(dl.part_path(), ec);
+      return Attempt::retry();
     }
-    if (!status.ok() && (!connected || !is_stream_break(static_cast<int>(status.error_code()),
-                                                        status.error_message())))
-      return remote.fail("fetch", status);
+    if (!status.ok() && (!connected_ || !is_stream_break(static_cast<int>(status.error_code()),
+                                                         status.error_message())))
+      return Attempt::exit(remote_.fail("fetch", status));
     // A lost stream (or one that ended early): resume from the .part.
-    const double wait = retry.next_delay(monotonic_seconds());
+    const double wait = retry_.next_delay(monotonic_seconds());
     if (wait < 0) {
-      std::cerr << "erg: fetch: gave up on " << name << " at byte "
-                << (dl->size() >= 0 ? dl->bytes() : offset) << " (" << dl->part_path()
+      std::cerr << "erg: fetch: gave up on " << name_ << " at byte "
+                << (dl.size() >= 0 ? dl.bytes() : offset) << " (" << dl.part_path()
                 << " is kept; erg fetch resumes it)\n";
-      return status.ok() ? kExitError : remote.fail("fetch", status);
+      return Attempt::exit(status.ok() ? kExitError : remote_.fail("fetch", status));
     }
-    std::cerr << "erg: lost the stream of " << name << " ("
+    std::cerr << "erg: lost the stream of " << name_ << " ("
               << (status.ok() ? std::string("ended early")
                               : status_code_name(static_cast<int>(status.error_code())) + ": " +
                                     status.error_message())
               << "); retrying\n";
     sleep_seconds(wait);
+    return Attempt::retry();
   }
+
+  Remote& remote_;
+  const std::string id_;
+  const std::int64_t step_;
+  const std::string dir_;
+  bool connected_;
+  std::string name_;
+  bool existing_checked_ = false;
+  int renamed_ = 0;  // times ergd named the file otherwise
+  RetryBudget retry_;
+};
+
+int fetch_step(Remote& remote, const std::string& id, std::int64_t step, const std::string& dir,
+               bool connected) {
+  return StepFetch(remote, id, step, dir, connected).run();
 }
 
 }  // namespace
@@ -254,24 +333,11 @@ int cmd_preview(Remote& remote, const std::vector<std::string>& args) {
   remote.prepare(ctx, kPreviewDeadline);
   const grpc::Status status = remote.stub().GetPreview(&ctx, req, &preview);
   if (!status.ok()) return remote.fail("preview", status);
-  // Written under a temporary name and renamed: never half a PNG.
-  const std::string tmp = out + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f.write(preview.png().data(), static_cast<std::streamsize>(preview.png().size()));
-    f.close();
-    if (!f) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      std::cerr << "erg: preview: cannot write " << out << "\n";
-      return kExitError;
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, out, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    std::cerr << "erg: preview: cannot write " << out << ": " << ec.message() << "\n";
+  // Never half a PNG.
+  try {
+    io::write_file_atomic(out, preview.png());
+  } catch (const std::exception& e) {
+    std::cerr << "erg: preview: cannot write " << e.what() << "\n";
     return kExitError;
   }
   std::cerr << "erg: preview of step " << preview.step() << " of " << req.id() << " ("

@@ -9,6 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "io/atomic_file.h"
 #include "util/subprocess.h"
 
 namespace erg::server {
@@ -111,12 +112,7 @@ std::string SlurmLauncher::start(const LaunchRequest& req, LaunchCallbacks cb) {
   const std::string dir = fs::path(req.job_file).parent_path().string();
   const std::string script = dir + "/job.sbatch";
   const std::string text = render(req);  // throws before anything is written
-  {
-    std::ofstream f(script + ".tmp", std::ios::trunc);
-    f << text;
-    if (!f) throw std::runtime_error("cannot write " + script);
-  }
-  fs::rename(script + ".tmp", script);
+  io::write_file_atomic(script, text);
   std::error_code ec;
   fs::remove(progress_path(req), ec);
   fs::remove(exit_path(req), ec);

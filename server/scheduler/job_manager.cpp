@@ -17,8 +17,10 @@
 #include <system_error>
 
 #include "auth/request_checks.h"
+#include "io/atomic_file.h"
+#include "io/run_files.h"
 #include "job/spec.h"
-#include "sim/tiling.h"
+#include "sim/tile_plan.h"
 
 namespace erg::server {
 
@@ -82,24 +84,6 @@ std::string new_job_id() {
   return buf;
 }
 
-// Writes text to path through a temporary and a rename (the worker only
-// ever sees complete steering files; ergd never leaves a half-written file).
-void write_file_atomic(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    f << text;
-    f.flush();
-    if (!f) {
-      const int err = errno;
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw std::system_error(err ? err : EIO, std::generic_category(), "cannot write " + tmp);
-    }
-  }
-  fs::rename(tmp, path);
-}
-
 // Whether an error message says the disk is full.
 bool says_full(const std::string& m) {
   return m.find("No space left on device") != std::string::npos ||
@@ -147,15 +131,11 @@ std::string JobManager::job_dir(const std::string& id) const {
 }
 
 std::string JobManager::snapshot_path(const std::string& id, std::int64_t step) const {
-  char name[40];
-  std::snprintf(name, sizeof name, "step_%08lld.h5", static_cast<long long>(step));
-  return job_dir(id) + "/run/snapshots/" + name;
+  return job_dir(id) + "/run/snapshots/" + step_name(step) + ".h5";
 }
 
 std::string JobManager::preview_path(const std::string& id, std::int64_t step) const {
-  char name[40];
-  std::snprintf(name, sizeof name, "step_%08lld.png", static_cast<long long>(step));
-  return job_dir(id) + "/run/previews/" + name;
+  return job_dir(id) + "/run/previews/" + step_name(step) + ".png";
 }
 
 double JobManager::cell_steps_of(const Job& job) const {
@@ -310,7 +290,7 @@ Job JobManager::submit(const std::string& tenant, const erg::v1::SubmitJobReques
   Job stored;
   try {
     fs::create_directories(dir + "/steer");
-    write_file_atomic(dir + "/job.json", job::to_json(spec));
+    io::write_file_atomic(dir + "/job.json", job::to_json(spec));
     auto [s, created] = store_.insert(job);
     if (!created) {
       fs::remove_all(dir);  // a concurrent submit with the same key won
@@ -458,6 +438,7 @@ erg::v1::SteerJobResponse JobManager::steer(const std::string& tenant, const std
     throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, msg);
   }
   std::vector<std::string> files;
+  std::vector<std::pair<std::string, std::string>> contents;
   const std::uint64_t seq = ++steer_seq_;
   for (size_t k = 0; k < events.size(); ++k) {
     char name[64];
@@ -467,9 +448,11 @@ erg::v1::SteerJobResponse JobManager::steer(const std::string& tenant, const std
     google::protobuf::util::JsonPrintOptions opt;
     opt.preserve_proto_field_names = true;
     (void)google::protobuf::util::MessageToJsonString(events[k], &json, opt);
-    write_file_atomic(job_dir(id) + "/steer/" + name, json);
+    contents.emplace_back(job_dir(id) + "/steer/" + name, std::move(json));
     files.push_back(name);
   }
+  // Together: the worker applies the events of one call at one step.
+  io::write_files_atomic(contents);
   // The worker applies them at its next step boundary and says so.
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
   erg::v1::SteerJobResponse out;

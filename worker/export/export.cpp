@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "io/run_files.h"
+
 namespace erg::exporting {
 
 namespace fs = std::filesystem;
@@ -58,9 +60,7 @@ std::string snapshot_path(const std::string& dir, long long step) {
     throw ExportError("--step " + std::to_string(step) + ": " + dir +
                       " has no snapshot of that step; steps: " + have);
   }
-  char name[32];
-  std::snprintf(name, sizeof name, "step_%08lld.h5", step);
-  return (fs::path(dir) / "snapshots" / name).string();
+  return (fs::path(dir) / "snapshots" / (step_name(step) + ".h5")).string();
 }
 
 std::string tile_path(const std::string& out, int i, int j) {

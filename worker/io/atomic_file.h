@@ -1,11 +1,14 @@
-// Internal to erg_io: the write-to-temporary-then-rename protocol shared by
-// every writer (snapshots, XDMF, checkpoints, PNGs).
+// The one way erg writes a file that must survive a crash: snapshots, XDMF,
+// checkpoints, previews, exports, DIR/job.json, ergd's steering files and
+// batch scripts, erg's downloads. Header-only, with no dependency beyond
+// POSIX, so every program uses it (target erg_atomic_file).
 //
 // A writer creates "<path>.tmp-<pid>" (same directory, hence same file
 // system, so rename(2) replaces <path> atomically), writes and closes it, then
-// calls commit(): fsync the data, rename over <path>, fsync the directory. If
-// anything throws first, the destructor unlinks the temporary, so <path> only
-// ever holds the previous complete file or the new complete file.
+// publishes it (replace_durably): fsync the data, rename over <path>, fsync
+// the directory. If anything throws first, AtomicFile's destructor unlinks the
+// temporary, so <path> only ever holds the previous complete file or the new
+// complete file.
 #pragma once
 
 #include <fcntl.h>
@@ -14,11 +17,14 @@
 #include <cerrno>
 #include <cstddef>
 #include <cstdio>
+#include <memory>
 #include <string>
+#include <string_view>
 #include <system_error>
 #include <utility>
+#include <vector>
 
-#include "io/io.h"
+#include "io/io_error.h"
 
 namespace erg::io::detail {
 
@@ -81,43 +87,97 @@ class AtomicFile {
     close_stdio(fp);
   }
 
-  // The temporary is complete and closed: make its data durable, then
-  // publish it under the final name. Without the fsync a crash right after
-  // the rename could leave <path> naming an empty or partial file.
-  void commit() {
-    int fd = ::open(tmp_.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0) fail_errno(path_, "cannot reopen temporary file '" + tmp_ + "' to sync it", errno);
-    if (::fsync(fd) != 0) {
-      int err = errno;
-      ::close(fd);
-      fail_errno(path_, "fsync of temporary file '" + tmp_ + "' failed", err);
-    }
-    ::close(fd);
-    if (std::rename(tmp_.c_str(), path_.c_str()) != 0) {
-      fail_errno(path_, "rename from temporary file '" + tmp_ + "' failed", errno);
-    }
-    committed_ = true;
-    sync_parent_dir();
-  }
+  // The temporary is complete and closed: publish it (replace_durably).
+  void commit();
+  // Only the rename of a synced temporary (write_files_atomic).
+  void publish();
 
  private:
-  // Makes the rename itself durable. Best effort: some file systems refuse
-  // fsync on a directory, and the new file is already complete either way.
-  void sync_parent_dir() const {
-    std::string dir = ".";
-    if (auto slash = path_.find_last_of('/'); slash != std::string::npos) {
-      dir = slash == 0 ? "/" : path_.substr(0, slash);
-    }
-    int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-    if (fd >= 0) {
-      (void)::fsync(fd);
-      ::close(fd);
-    }
-  }
-
   std::string path_;
   std::string tmp_;
   bool committed_ = false;
 };
 
 }  // namespace erg::io::detail
+
+namespace erg::io {
+
+namespace detail {
+
+// fsync of the complete, closed temporary `tmp` of `path`.
+inline void sync_file(const std::string& tmp, const std::string& path) {
+  const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) fail_errno(path, "cannot reopen temporary file '" + tmp + "' to sync it", errno);
+  if (::fsync(fd) != 0) {
+    const int err = errno;
+    ::close(fd);
+    fail_errno(path, "fsync of temporary file '" + tmp + "' failed", err);
+  }
+  ::close(fd);
+}
+
+inline void rename_file(const std::string& tmp, const std::string& path) {
+  if (std::rename(tmp.c_str(), path.c_str()) != 0)
+    fail_errno(path, "rename from temporary file '" + tmp + "' failed", errno);
+}
+
+// Best effort: some file systems refuse fsync on a directory, and the file
+// is complete either way.
+inline void sync_dir_of(const std::string& path) {
+  std::string dir = ".";
+  if (auto slash = path.find_last_of('/'); slash != std::string::npos)
+    dir = slash == 0 ? "/" : path.substr(0, slash);
+  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd >= 0) {
+    (void)::fsync(dfd);
+    ::close(dfd);
+  }
+}
+
+}  // namespace detail
+
+// Publishes the complete, closed file `tmp` as `path`: fsync its data,
+// rename it over `path`, fsync the directory. Without the first fsync a crash
+// right after the rename could leave `path` naming an empty or partial file;
+// without the last the rename itself may be lost.
+inline void replace_durably(const std::string& tmp, const std::string& path) {
+  detail::sync_file(tmp, path);
+  detail::rename_file(tmp, path);
+  detail::sync_dir_of(path);
+}
+
+// Writes `bytes` as the whole of `path`, atomically and durably. Throws
+// IoError naming the file and the system's reason.
+inline void write_file_atomic(const std::string& path, std::string_view bytes) {
+  detail::AtomicFile out(path);
+  out.write_whole(bytes.data(), bytes.size());
+  out.commit();
+}
+
+// Several files (path, bytes) of one directory published together: all are
+// written and synced first, then renamed one right after the other, so a
+// reader of the directory (the worker's steering) finds them all or none but
+// for a window of microseconds, not of the fsyncs.
+inline void write_files_atomic(const std::vector<std::pair<std::string, std::string>>& files) {
+  std::vector<std::unique_ptr<detail::AtomicFile>> out;
+  for (const auto& [path, bytes] : files) {
+    out.push_back(std::make_unique<detail::AtomicFile>(path));
+    out.back()->write_whole(bytes.data(), bytes.size());
+    detail::sync_file(out.back()->tmp(), path);
+  }
+  for (auto& f : out) f->publish();
+  for (const auto& f : out) detail::sync_dir_of(f->path());
+}
+
+inline void detail::AtomicFile::commit() {
+  sync_file(tmp_, path_);
+  publish();
+  sync_dir_of(path_);
+}
+
+inline void detail::AtomicFile::publish() {
+  rename_file(tmp_, path_);
+  committed_ = true;
+}
+
+}  // namespace erg::io

@@ -14,12 +14,9 @@
 #include <utility>
 #include <vector>
 
-namespace erg::io {
+#include "io/io_error.h"
 
-// Raised for any I/O failure; the message names the file and the cause.
-struct IoError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+namespace erg::io {
 
 // ---- snapshots -------------------------------------------------------------
 // Root attributes of a snapshot file (the file contract in README.md).

@@ -441,31 +441,10 @@ void write_atomically(Collective& co, const std::string& path, hid_t fcpl, std::
     }
     co.run([&] {
       if (co.rank() != 0) return;
-      // What the close itself wrote (rank 0 writes the superblock).
-      const int fd = ::open(tmp.c_str(), O_RDONLY | O_CLOEXEC);
-      if (fd < 0) {
-        detail::fail_errno(path, "cannot reopen temporary file '" + tmp + "' to sync it", errno);
-      }
-      if (::fsync(fd) != 0) {
-        const int err = errno;
-        ::close(fd);
-        detail::fail_errno(path, "fsync of temporary file '" + tmp + "' failed", err);
-      }
-      ::close(fd);
-      if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        detail::fail_errno(path, "rename from temporary file '" + tmp + "' failed", errno);
-      }
+      // What the close itself wrote (rank 0 writes the superblock) is
+      // synced with the rest.
+      replace_durably(tmp, path);
       committed = true;
-      // Makes the rename durable. Best effort, as in AtomicFile.
-      std::string dir = ".";
-      if (auto slash = path.find_last_of('/'); slash != std::string::npos) {
-        dir = slash == 0 ? "/" : path.substr(0, slash);
-      }
-      const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-      if (dfd >= 0) {
-        (void)::fsync(dfd);
-        ::close(dfd);
-      }
     });
     co.agree();  // no rank returns before the file is at `path`
   } catch (const IoError&) {

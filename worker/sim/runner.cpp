@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -16,6 +17,7 @@
 #include <stdexcept>
 
 #include "dist/decomposition.h"
+#include "io/atomic_file.h"
 #include "job/worker_event.h"
 #include "sim/resume_point.h"
 #include "sim/tiling.h"
@@ -52,16 +54,6 @@ class Progress {
  private:
   int fd_;
 };
-
-void write_atomic_text(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp-" + std::to_string(::getpid());
-  {
-    std::ofstream o(tmp, std::ios::binary);
-    o << text;
-    if (!o) throw io::IoError(path + ": cannot write");
-  }
-  fs::rename(tmp, path);
-}
 
 // This rank's place in the run.
 struct Context {
@@ -257,300 +249,416 @@ std::string fmt_duration(double s) {
   return buf;
 }
 
-}  // namespace
+// ---- the run: setup, loop, reporting -------------------------------------
 
-std::string step_name(std::int64_t step) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "step_%08lld", static_cast<long long>(step));
-  return buf;
+// What a run starts from, decided by the coordinator and broadcast.
+struct StartPoint {
+  std::string spec_json;       // the defaults-filled spec, with this run's overrides
+  std::string base_dir = ".";  // for the map files the spec names
+  std::string checkpoint;      // resume: the checkpoint to read
+};
+
+// Rank 0, --resume: the newest checkpoint that proves its integrity and
+// agrees with job.json (sim/resume_point.h); each one passed over is named.
+// Returns 0, or the exit code of a run that cannot resume.
+int resume_point(const RunConfig& cfg, StartPoint& start) {
+  ResumePoint point = choose_resume_point(cfg.out_dir);
+  for (const std::string& why : point.skipped) std::cerr << "erg: checkpoint " << why << "\n";
+  if (point.path.empty()) {
+    std::cerr << "erg: " << cfg.out_dir
+              << (point.skipped.empty() ? " holds no checkpoint to resume from\n"
+                                        : " holds no intact checkpoint to resume from\n");
+    return 2;
+  }
+  start.checkpoint = point.path;
+  if (!point.skipped.empty())
+    std::cerr << "erg: resuming from " << fs::path(point.path).filename().string() << " (step "
+              << point.step << "), the newest intact checkpoint\n";
+  erg::v1::JobSpec spec = std::move(point.spec);
+  job::apply_overrides(spec, cfg.overrides);
+  start.spec_json = job::to_json(spec);
+  return 0;
 }
+
+// Rank 0, a new run: the job file, validated, into a directory that holds
+// no run yet. Returns 0, or the exit code of a run that cannot start.
+int new_start_point(const RunConfig& cfg, StartPoint& start) {
+  erg::v1::JobSpec spec = job::load_job_file(cfg.job_path);
+  job::apply_overrides(spec, cfg.overrides);
+  start.base_dir = job::base_dir_of(cfg.job_path);
+  auto problems = job::validate(spec, start.base_dir);
+  if (!problems.empty()) throw job::SpecError(problems);
+  // Any checkpoint file, intact or not, belongs to a run.
+  std::error_code ec;
+  if (!fs::is_empty(fs::path(cfg.out_dir) / "checkpoints", ec) && !ec) {
+    std::cerr << "erg: " << cfg.out_dir
+              << " already holds a run; continue it with --resume or choose another --out\n";
+    return 2;
+  }
+  start.spec_json = job::to_json(spec);
+  return 0;
+}
+
+// Rank 0: where the run starts, with every error of the input reported.
+int choose_start_point(const RunConfig& cfg, StartPoint& start) {
+  try {
+    return cfg.resume ? resume_point(cfg, start) : new_start_point(cfg, start);
+  } catch (const job::SpecError& e) {
+    std::cerr << "erg: invalid job:\n" << e.what() << "\n";
+  } catch (const std::exception& e) {
+    std::cerr << "erg: " << e.what() << "\n";
+  }
+  return 2;
+}
+
+// What the coordinator decided after a step, for every rank (a signal
+// reaches the ranks at different steps, steering files only rank 0).
+struct StepOutcome {
+  bool report = false;  // send a progress event
+  bool stop = false;    // a signal came: checkpoint and stop
+  bool steer = false;   // steering events wait: add them before the next step
+};
+
+// One broadcast per step, as before the outcomes had names.
+StepOutcome bcast(const StepOutcome& o, const Context& ctx) {
+  int v[3] = {o.report, o.stop, o.steer};
+  MPI_Bcast(v, 3, MPI_INT, 0, ctx.comm);
+  return {v[0] != 0, v[1] != 0, v[2] != 0};
+}
+
+using Clock = std::chrono::steady_clock;
+
+double seconds(Clock::duration d) {
+  return std::chrono::duration<double>(d).count();
+}
+
+// A whole run on this rank (run_job): setup, the loop, the report.
+class JobRun {
+ public:
+  JobRun(const RunConfig& cfg, MPI_Comm world) : cfg_(cfg) {
+    ctx_.comm = world;
+    MPI_Comm_rank(world, &ctx_.rank);
+    MPI_Comm_size(world, &ctx_.size);
+    progress_ = Progress(ctx_.root() ? cfg.progress_fd : -1);
+  }
+
+  int run() {
+    if (const int code = setup(); code != 0) return code;
+    try {
+      begin();
+      if (const int code = loop(); code != 0) return code;
+      report_done();
+    } catch (const std::exception& e) {
+      return fail(e);
+    }
+    return 0;
+  }
+
+ private:
+  // ---- setup ----
+
+  // The job, validated once by the coordinator, then on every rank the tile
+  // grid, its tile and its simulation. 0, or the exit code.
+  int setup() {
+    StartPoint start;
+    int status = ctx_.root() ? choose_start_point(cfg_, start) : 0;
+    status = bcast(status, ctx_);
+    if (status != 0) return status;
+    bcast(start.spec_json, ctx_);
+    bcast(start.base_dir, ctx_);
+    bcast(start.checkpoint, ctx_);
+    spec_json_ = start.spec_json;
+    try {
+      build_simulation(start);
+    } catch (const std::exception& e) {
+      // Every rank decides the same for a bad grid or spec; anything else is
+      // this rank's alone, so the job is aborted.
+      if (ctx_.root()) std::cerr << "erg: " << e.what() << "\n";
+      if (dynamic_cast<const std::invalid_argument*>(&e)) return 2;
+      std::cerr << "erg-worker rank " << ctx_.rank << ": " << e.what() << "\n";
+      MPI_Abort(ctx_.comm, 1);
+    }
+    steps_ = sim_->spec().run().steps();
+    steering_ = !cfg_.steer_dir.empty();                  // the same on every rank
+    log_steering_ = !cfg_.quiet && cfg_.progress_fd < 0;  // else the events say it
+    return 0;
+  }
+
+  void build_simulation(const StartPoint& start) {
+    erg::v1::JobSpec spec = job::parse_json(start.spec_json, "job");
+    job::apply_defaults(spec);
+    tiling_ = make_tiling(spec, ctx_.comm, cfg_.tiles_x, cfg_.tiles_y);
+    ctx_.cart = tiling_->cart;
+    ctx_.d = tiling_->d;
+    ctx_.slab = tiling_->slab;
+    ctx_.chunk_x = ctx_.d.chunk_x;
+    ctx_.chunk_y = ctx_.d.chunk_y;
+    if (cfg_.resume) {
+      io::Checkpoint c = ctx_.tiled()
+                             ? io::read_checkpoint_parallel(ctx_.cart, start.checkpoint, ctx_.slab)
+                             : io::read_checkpoint(start.checkpoint);
+      c.job_spec_json = start.spec_json;  // with this run's overrides
+      sim_ = std::make_unique<Simulation>(c, cfg_.options, tiling_->place);
+    } else {
+      sim_ = std::make_unique<Simulation>(spec, start.base_dir, cfg_.options, tiling_->place);
+    }
+  }
+
+  // The directories, job.json, the start event; a new run's first outputs;
+  // steering waiting before the first step.
+  void begin() {
+    if (ctx_.root()) {
+      for (const char* sub : {"snapshots", "previews", "checkpoints"})
+        fs::create_directories(fs::path(cfg_.out_dir) / sub);
+      if (steering_) fs::create_directories(cfg_.steer_dir);
+      if (!cfg_.resume) io::write_file_atomic(cfg_.out_dir + "/job.json", spec_json_);
+      if (cfg_.resume && !cfg_.quiet)
+        std::cerr << "erg: resuming " << cfg_.out_dir << " at step " << sim_->step_index() << "\n";
+      report_start();
+    }
+    MPI_Barrier(ctx_.comm);  // the directories exist before any collective write
+    if (!cfg_.resume) {
+      write_outputs(*sim_, cfg_.out_dir, sim_->spec().run().previews(), progress_, ctx_);
+      if (sim_->spec().run().checkpoint_every() > 0) write_checkpoint(*sim_, cfg_.out_dir, ctx_);
+    }
+    // One broadcast, only when steering.
+    if (steering_ && sim_->step_index() < steps_) {
+      const int pending = ctx_.root() && take_steering(sim_->step_index()) ? 1 : 0;
+      if (bcast(pending, ctx_)) apply_steering();
+    }
+  }
+
+  // ---- the loop ----
+
+  // Steps to the end; 0, or 128 + the signal that stopped the run.
+  int loop() {
+    const auto t0 = Clock::now();
+    last_report_ = last_log_ = t0;
+    first_ = sim_->step_index();
+    stats0_ = sim_->exchange().stats();
+    while (sim_->step_index() < steps_) {
+      sim_->step();
+      const std::int64_t s = sim_->step_index();
+      const bool last = s == steps_;
+      write_due_files(s, last);
+      const auto now = Clock::now();
+      const StepOutcome next = bcast(ctx_.root() ? decide(s, last, now) : StepOutcome{}, ctx_);
+      const double rate = static_cast<double>(s - first_) / std::max(seconds(now - t0), 1e-9);
+      const double eta = static_cast<double>(steps_ - s) / std::max(rate, 1e-9);
+      if (next.report) report_progress(s, rate, eta, now);
+      log_progress(s, last, rate, eta, now);
+      if (next.steer) apply_steering();
+      if (next.stop) return stop(s);
+    }
+    return 0;
+  }
+
+  // Snapshots and checkpoints at the job's cadence, and both at the end.
+  void write_due_files(std::int64_t s, bool last) {
+    const auto& run = sim_->spec().run();
+    if (last || (run.snapshot_every() > 0 && s % run.snapshot_every() == 0))
+      write_outputs(*sim_, cfg_.out_dir, run.previews(), progress_, ctx_);
+    if (last || (run.checkpoint_every() > 0 && s % run.checkpoint_every() == 0))
+      write_checkpoint(*sim_, cfg_.out_dir, ctx_);
+  }
+
+  // Rank 0 after step s: report at most every 0.25 s and at the end; stop
+  // on a signal; steering follows a step that does not stop (events at step
+  // s, which the next step() applies).
+  StepOutcome decide(std::int64_t s, bool last, Clock::time_point now) {
+    StepOutcome o;
+    o.report = last || seconds(now - last_report_) >= 0.25;
+    o.stop = g_signal.load() != 0 && !last;
+    o.steer = steering_ && !last && !o.stop && take_steering(s);
+    return o;
+  }
+
+  // Rank 0: the good steering files waiting before step s (the bad ones are
+  // rejected now). Whether there are any.
+  bool take_steering(std::int64_t s) {
+    steered_ = collect_steering(cfg_.steer_dir, sim_->spec(), s, progress_, log_steering_);
+    return !steered_.empty();
+  }
+
+  // Every rank: the events rank 0 took, appended before the next step; then
+  // rank 0 records them in job.json before it marks their files applied.
+  void apply_steering() {
+    std::string bytes;
+    erg::v1::JobSpec carrier;
+    if (ctx_.root()) {
+      for (const auto& f : steered_) *carrier.add_events() = f.event;
+      if (ctx_.tiled()) carrier.SerializeToString(&bytes);
+    }
+    if (ctx_.tiled()) {
+      bcast(bytes, ctx_);
+      if (!ctx_.root() && !carrier.ParseFromString(bytes))
+        throw std::runtime_error("steering events: bad broadcast");
+    }
+    sim_->add_events(std::vector<erg::v1::Event>(carrier.events().begin(), carrier.events().end()));
+    if (!ctx_.root()) return;
+    // Recorded before the files say so: an applied file is in job.json.
+    io::write_file_atomic(cfg_.out_dir + "/job.json", job::to_json(sim_->spec()));
+    for (const auto& f : steered_) {
+      mark_steer_file(cfg_.steer_dir, f.name, ".applied");
+      if (log_steering_)
+        std::cerr << "erg: steering " << f.name << " applied at step " << sim_->step_index()
+                  << "\n";
+      erg::v1::WorkerEvent e;
+      e.set_step(sim_->step_index());
+      e.mutable_steered()->set_file(job::valid_utf8(f.name));
+      *e.mutable_steered()->mutable_event() = f.event;
+      progress_.emit(e);
+    }
+    steered_.clear();
+  }
+
+  // After a signal: a last checkpoint, the stopped event; 128 + the signal.
+  int stop(std::int64_t s) {
+    write_checkpoint(*sim_, cfg_.out_dir, ctx_);
+    const int sig = bcast(g_signal.load(), ctx_);
+    if (ctx_.root()) {
+      std::cerr << "erg: stopped by signal " << sig << " at step " << s
+                << "; checkpoint written, resume with --resume\n";
+      erg::v1::WorkerEvent e;
+      e.set_step(s);
+      e.mutable_stopped()->set_signal(sig);
+      progress_.emit(e);
+    }
+    return 128 + sig;
+  }
+
+  // ---- reporting ----
+
+  // Exact totals (collective).
+  erg::v1::WorkerEvent::Totals totals() {
+    const Totals t = sim_->totals();
+    erg::v1::WorkerEvent::Totals out;
+    out.set_sand_units_total(to_decimal(t.sand));
+    out.set_airborne_units_total(to_decimal(t.airborne));
+    out.set_bedrock_units_total(to_decimal(t.bedrock));
+    return out;
+  }
+
+  void report_start() {
+    erg::v1::WorkerEvent e;
+    e.set_step(sim_->step_index());
+    auto& start = *e.mutable_start();
+    start.set_steps(steps_);
+    start.set_backend(sim_->backend().name());
+    start.set_nx(sim_->model().tile.gnx);
+    start.set_ny(sim_->model().tile.gny);
+    start.set_ranks(ctx_.size);
+    start.set_tiles_x(ctx_.d.px);
+    start.set_tiles_y(ctx_.d.py);
+    progress_.emit(e);
+  }
+
+  // Collective (the totals).
+  void report_progress(std::int64_t s, double rate, double eta, Clock::time_point now) {
+    last_report_ = now;
+    erg::v1::WorkerEvent e;
+    e.set_step(s);
+    auto& p = *e.mutable_progress();
+    p.set_steps(steps_);
+    p.set_steps_per_s(rate);
+    p.set_eta_s(eta);
+    p.set_time_days(sim_->time_days());
+    p.set_time_years(sim_->time_s() / (365.25 * 86400.0));
+    *p.mutable_totals() = totals();
+    progress_.emit(e);
+  }
+
+  // The periodic line on stderr of a run without a progress descriptor.
+  void log_progress(std::int64_t s, bool last, double rate, double eta, Clock::time_point now) {
+    if (!ctx_.root() || cfg_.quiet || cfg_.progress_fd >= 0) return;
+    if (!last && seconds(now - last_log_) < 5.0) return;
+    last_log_ = now;
+    std::cerr << "erg: step " << s << "/" << steps_ << "  " << rate << " steps/s  ETA "
+              << fmt_duration(eta) << "\n";
+  }
+
+  // Halo traffic per step since the loop began, the most any rank sent
+  // (messages, bytes). Collective.
+  std::array<long long, 2> halo_traffic_per_step() {
+    const dist::Exchange::Stats st = sim_->exchange().stats();
+    const std::int64_t ran = std::max<std::int64_t>(1, sim_->step_index() - first_);
+    long long mine[2] = {(st.messages - stats0_.messages) / ran, (st.bytes - stats0_.bytes) / ran};
+    std::array<long long, 2> most = {0, 0};
+    MPI_Reduce(mine, most.data(), 2, MPI_LONG_LONG, MPI_MAX, 0, ctx_.comm);
+    return most;
+  }
+
+  // The peak resident set of every rank (state, work buffers, halos, output
+  // copies, MPI and HDF5): {sum, largest}. Collective.
+  std::array<long long, 2> peak_memory() {
+    struct rusage usage {};
+    ::getrusage(RUSAGE_SELF, &usage);
+    const long long rss = static_cast<long long>(usage.ru_maxrss) * 1024;  // kB on Linux
+    std::array<long long, 2> out = {0, 0};
+    MPI_Reduce(&rss, &out[0], 1, MPI_LONG_LONG, MPI_SUM, 0, ctx_.comm);
+    MPI_Reduce(&rss, &out[1], 1, MPI_LONG_LONG, MPI_MAX, 0, ctx_.comm);
+    return out;
+  }
+
+  // The done event: totals, halo traffic, memory, time per stage. Collective.
+  void report_done() {
+    const std::array<long long, 2> halo = halo_traffic_per_step();
+    const std::array<long long, 2> rss = peak_memory();
+    const double cells = static_cast<double>(ctx_.d.gnx) * static_cast<double>(ctx_.d.gny);
+    const erg::v1::WorkerEvent::Totals end_totals = totals();
+    if (!ctx_.root()) return;
+    const StageTimes& t = sim_->times();
+    erg::v1::WorkerEvent e;
+    e.set_step(sim_->step_index());
+    auto& done = *e.mutable_done();
+    *done.mutable_totals() = end_totals;
+    done.set_halo_messages_per_step(halo[0]);
+    done.set_halo_bytes_per_step(halo[1]);
+    done.set_peak_rss_bytes(rss[0]);
+    done.set_peak_rss_bytes_max_rank(rss[1]);
+    done.set_peak_rss_bytes_per_cell(static_cast<double>(rss[0]) / cells);
+    for (int k = 0; k < kStageCount; ++k)
+      (*done.mutable_stage_ms())[kStageNames[k]] = t.ms[static_cast<size_t>(k)];
+    progress_.emit(e);
+  }
+
+  // This rank failed after setup: the failed event; every rank aborted.
+  int fail(const std::exception& e) {
+    std::cerr << "erg-worker rank " << ctx_.rank << ": run failed at step " << sim_->step_index()
+              << ": " << e.what() << "\n";
+    erg::v1::WorkerEvent ev;
+    ev.set_step(sim_->step_index());
+    ev.mutable_failed()->set_reason(job::valid_utf8(e.what()));
+    ev.mutable_failed()->set_rank(ctx_.rank);
+    progress_.emit(ev);
+    if (ctx_.tiled()) MPI_Abort(ctx_.comm, 1);  // never leave the other ranks waiting
+    return 1;
+  }
+
+  const RunConfig& cfg_;
+  Context ctx_;
+  Progress progress_{-1};
+  std::string spec_json_;  // as validated (job.json of a new run)
+  std::unique_ptr<Tiling> tiling_;
+  std::unique_ptr<Simulation> sim_;
+  std::int64_t steps_ = 0;
+  bool steering_ = false, log_steering_ = false;
+  std::vector<SteerFile> steered_;  // rank 0: taken, not yet applied
+  Clock::time_point last_report_, last_log_;
+  std::int64_t first_ = 0;  // the loop's first step
+  dist::Exchange::Stats stats0_{};
+};
+
+}  // namespace
 
 std::string latest_checkpoint(const std::string& out_dir) {
   return choose_resume_point(out_dir).path;
 }
 
 int run_job(const RunConfig& cfg, MPI_Comm world) {
-  Context ctx;
-  ctx.comm = world;
-  MPI_Comm_rank(world, &ctx.rank);
-  MPI_Comm_size(world, &ctx.size);
-  Progress progress(ctx.root() ? cfg.progress_fd : -1);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-
-  // ---- the coordinator validates the job once and prepares the directory --
-  int status = 0;
-  std::string spec_json, base_dir = ".", checkpoint;
-  if (ctx.root()) {
-    try {
-      if (cfg.resume) {
-        // The newest checkpoint that proves its integrity and agrees with
-        // job.json (sim/resume_point.h); each one passed over is named.
-        ResumePoint point = choose_resume_point(cfg.out_dir);
-        for (const std::string& why : point.skipped) std::cerr << "erg: checkpoint " << why << "\n";
-        if (point.path.empty()) {
-          std::cerr << "erg: " << cfg.out_dir
-                    << (point.skipped.empty() ? " holds no checkpoint to resume from\n"
-                                              : " holds no intact checkpoint to resume from\n");
-          status = 2;
-        } else {
-          checkpoint = point.path;
-          if (!point.skipped.empty())
-            std::cerr << "erg: resuming from " << fs::path(point.path).filename().string()
-                      << " (step " << point.step << "), the newest intact checkpoint\n";
-          erg::v1::JobSpec spec = std::move(point.spec);
-          job::apply_overrides(spec, cfg.overrides);
-          spec_json = job::to_json(spec);
-        }
-      } else {
-        erg::v1::JobSpec spec = job::load_job_file(cfg.job_path);
-        job::apply_overrides(spec, cfg.overrides);
-        base_dir = job::base_dir_of(cfg.job_path);
-        auto problems = job::validate(spec, base_dir);
-        if (!problems.empty()) throw job::SpecError(problems);
-        // Any checkpoint file, intact or not, belongs to a run.
-        std::error_code ec;
-        if (!fs::is_empty(fs::path(cfg.out_dir) / "checkpoints", ec) && !ec) {
-          std::cerr << "erg: " << cfg.out_dir
-                    << " already holds a run; continue it with --resume or choose another --out\n";
-          status = 2;
-        } else {
-          spec_json = job::to_json(spec);
-        }
-      }
-    } catch (const job::SpecError& e) {
-      std::cerr << "erg: invalid job:\n" << e.what() << "\n";
-      status = 2;
-    } catch (const std::exception& e) {
-      std::cerr << "erg: " << e.what() << "\n";
-      status = 2;
-    }
-  }
-  status = bcast(status, ctx);
-  if (status != 0) return status;
-  bcast(spec_json, ctx);
-  bcast(base_dir, ctx);
-  bcast(checkpoint, ctx);
-
-  // ---- every rank: the tile grid, its tile, its simulation -----------------
-  std::unique_ptr<Simulation> sim;
-  std::unique_ptr<Tiling> tiling;
-  try {
-    erg::v1::JobSpec spec = job::parse_json(spec_json, "job");
-    job::apply_defaults(spec);
-    tiling = make_tiling(spec, world, cfg.tiles_x, cfg.tiles_y);
-    ctx.cart = tiling->cart;
-    ctx.d = tiling->d;
-    ctx.slab = tiling->slab;
-    ctx.chunk_x = ctx.d.chunk_x;
-    ctx.chunk_y = ctx.d.chunk_y;
-    if (cfg.resume) {
-      io::Checkpoint c = ctx.tiled() ? io::read_checkpoint_parallel(ctx.cart, checkpoint, ctx.slab)
-                                     : io::read_checkpoint(checkpoint);
-      c.job_spec_json = spec_json;  // with this run's overrides
-      sim = std::make_unique<Simulation>(c, cfg.options, tiling->place);
-    } else {
-      sim = std::make_unique<Simulation>(spec, base_dir, cfg.options, tiling->place);
-    }
-  } catch (const std::exception& e) {
-    // Every rank decides the same for a bad grid or spec; anything else is
-    // this rank's alone, so the job is aborted.
-    if (ctx.root()) std::cerr << "erg: " << e.what() << "\n";
-    if (dynamic_cast<const std::invalid_argument*>(&e)) return 2;
-    std::cerr << "erg-worker rank " << ctx.rank << ": " << e.what() << "\n";
-    MPI_Abort(world, 1);
-  }
-
-  const auto& run = sim->spec().run();
-  const std::int64_t steps = run.steps();
-  const bool previews = run.previews();
-  const auto totals = [&]() {
-    const Totals t = sim->totals();  // collective
-    erg::v1::WorkerEvent::Totals out;
-    out.set_sand_units_total(to_decimal(t.sand));
-    out.set_airborne_units_total(to_decimal(t.airborne));
-    out.set_bedrock_units_total(to_decimal(t.bedrock));
-    return out;
-  };
-
-  try {
-    if (ctx.root()) {
-      for (const char* sub : {"snapshots", "previews", "checkpoints"})
-        fs::create_directories(fs::path(cfg.out_dir) / sub);
-      if (!cfg.steer_dir.empty()) fs::create_directories(cfg.steer_dir);
-      if (!cfg.resume) write_atomic_text(cfg.out_dir + "/job.json", spec_json);
-      if (cfg.resume && !cfg.quiet)
-        std::cerr << "erg: resuming " << cfg.out_dir << " at step " << sim->step_index() << "\n";
-      erg::v1::WorkerEvent e;
-      e.set_step(sim->step_index());
-      auto& start = *e.mutable_start();
-      start.set_steps(steps);
-      start.set_backend(sim->backend().name());
-      start.set_nx(sim->model().tile.gnx);
-      start.set_ny(sim->model().tile.gny);
-      start.set_ranks(ctx.size);
-      start.set_tiles_x(ctx.d.px);
-      start.set_tiles_y(ctx.d.py);
-      progress.emit(e);
-    }
-    MPI_Barrier(world);  // the directories exist before any collective write
-    if (!cfg.resume) {
-      write_outputs(*sim, cfg.out_dir, previews, progress, ctx);
-      if (run.checkpoint_every() > 0) write_checkpoint(*sim, cfg.out_dir, ctx);
-    }
-    // Steering: rank 0 finds the good events; every rank appends them
-    // before the next step. Collective once rank 0's decision is known.
-    const bool steering = !cfg.steer_dir.empty();                 // the same on every rank
-    const bool log_steering = !cfg.quiet && cfg.progress_fd < 0;  // else the events say it
-    std::vector<SteerFile> steered;
-    const auto apply_steering = [&]() {
-      std::vector<erg::v1::Event> events;
-      std::string bytes;
-      erg::v1::JobSpec carrier;
-      if (ctx.root()) {
-        for (const auto& f : steered) *carrier.add_events() = f.event;
-        if (ctx.tiled()) carrier.SerializeToString(&bytes);
-      }
-      if (ctx.tiled()) {
-        bcast(bytes, ctx);
-        if (!ctx.root() && !carrier.ParseFromString(bytes))
-          throw std::runtime_error("steering events: bad broadcast");
-      }
-      events.assign(carrier.events().begin(), carrier.events().end());
-      sim->add_events(events);
-      if (!ctx.root()) return;
-      // Recorded before the files say so: an applied file is in job.json.
-      write_atomic_text(cfg.out_dir + "/job.json", job::to_json(sim->spec()));
-      for (const auto& f : steered) {
-        mark_steer_file(cfg.steer_dir, f.name, ".applied");
-        if (log_steering)
-          std::cerr << "erg: steering " << f.name << " applied at step " << sim->step_index()
-                    << "\n";
-        erg::v1::WorkerEvent e;
-        e.set_step(sim->step_index());
-        e.mutable_steered()->set_file(job::valid_utf8(f.name));
-        *e.mutable_steered()->mutable_event() = f.event;
-        progress.emit(e);
-      }
-      steered.clear();
-    };
-    // Before the first step (one broadcast, only when steering).
-    if (steering && sim->step_index() < steps) {
-      int pending = 0;
-      if (ctx.root()) {
-        steered =
-            collect_steering(cfg.steer_dir, sim->spec(), sim->step_index(), progress, log_steering);
-        pending = steered.empty() ? 0 : 1;
-      }
-      if (bcast(pending, ctx)) apply_steering();
-    }
-    using Clock = std::chrono::steady_clock;
-    const auto t0 = Clock::now();
-    auto last_report = t0, last_log = t0;
-    const std::int64_t first = sim->step_index();
-    const dist::Exchange::Stats stats0 = sim->exchange().stats();
-    while (sim->step_index() < steps) {
-      sim->step();
-      const std::int64_t s = sim->step_index();
-      const bool last = s == steps;
-      if (last || (run.snapshot_every() > 0 && s % run.snapshot_every() == 0))
-        write_outputs(*sim, cfg.out_dir, previews, progress, ctx);
-      if (last || (run.checkpoint_every() > 0 && s % run.checkpoint_every() == 0))
-        write_checkpoint(*sim, cfg.out_dir, ctx);
-      // The coordinator decides, for every rank, whether to report and
-      // whether to stop (a signal reaches the ranks at different steps).
-      const auto now = Clock::now();
-      int control = 0;
-      if (ctx.root()) {
-        if (last || std::chrono::duration<double>(now - last_report).count() >= 0.25) control |= 1;
-        if (g_signal.load() != 0 && !last) control |= 2;
-        // Steering follows: events at step s, which the next step() applies.
-        if (steering && !last && !(control & 2)) {
-          steered = collect_steering(cfg.steer_dir, sim->spec(), s, progress, log_steering);
-          if (!steered.empty()) control |= 4;
-        }
-      }
-      control = bcast(control, ctx);
-      const double elapsed = std::chrono::duration<double>(now - t0).count();
-      const double rate = static_cast<double>(s - first) / std::max(elapsed, 1e-9);
-      const double eta = static_cast<double>(steps - s) / std::max(rate, 1e-9);
-      if (control & 1) {
-        last_report = now;
-        erg::v1::WorkerEvent e;
-        e.set_step(s);
-        auto& p = *e.mutable_progress();
-        p.set_steps(steps);
-        p.set_steps_per_s(rate);
-        p.set_eta_s(eta);
-        p.set_time_days(sim->time_days());
-        p.set_time_years(sim->time_s() / (365.25 * 86400.0));
-        *p.mutable_totals() = totals();
-        progress.emit(e);
-      }
-      if (ctx.root() && !cfg.quiet && cfg.progress_fd < 0 &&
-          (last || std::chrono::duration<double>(now - last_log).count() >= 5.0)) {
-        last_log = now;
-        std::cerr << "erg: step " << s << "/" << steps << "  " << rate << " steps/s  ETA "
-                  << fmt_duration(eta) << "\n";
-      }
-      if (control & 4) apply_steering();
-      if (control & 2) {
-        write_checkpoint(*sim, cfg.out_dir, ctx);
-        const int sig = bcast(g_signal.load(), ctx);
-        if (ctx.root()) {
-          std::cerr << "erg: stopped by signal " << sig << " at step " << s
-                    << "; checkpoint written, resume with --resume\n";
-          erg::v1::WorkerEvent e;
-          e.set_step(s);
-          e.mutable_stopped()->set_signal(sig);
-          progress.emit(e);
-        }
-        return 128 + sig;
-      }
-    }
-    // Halo traffic per step (the most any rank sent), and per-stage timing.
-    const dist::Exchange::Stats st = sim->exchange().stats();
-    const std::int64_t ran = std::max<std::int64_t>(1, sim->step_index() - first);
-    long long mine[2] = {(st.messages - stats0.messages) / ran, (st.bytes - stats0.bytes) / ran};
-    long long most[2] = {0, 0};
-    MPI_Reduce(mine, most, 2, MPI_LONG_LONG, MPI_MAX, 0, world);
-    // Memory: the peak resident set of every rank (state, work buffers,
-    // halos, output copies, MPI and HDF5), summed and per cell of the domain.
-    struct rusage usage {};
-    ::getrusage(RUSAGE_SELF, &usage);
-    const long long rss = static_cast<long long>(usage.ru_maxrss) * 1024;  // kB on Linux
-    long long rss_sum = 0, rss_max = 0;
-    MPI_Reduce(&rss, &rss_sum, 1, MPI_LONG_LONG, MPI_SUM, 0, world);
-    MPI_Reduce(&rss, &rss_max, 1, MPI_LONG_LONG, MPI_MAX, 0, world);
-    const double cells = static_cast<double>(ctx.d.gnx) * static_cast<double>(ctx.d.gny);
-    const erg::v1::WorkerEvent::Totals end_totals = totals();
-    if (ctx.root()) {
-      const StageTimes& t = sim->times();
-      erg::v1::WorkerEvent e;
-      e.set_step(sim->step_index());
-      auto& done = *e.mutable_done();
-      *done.mutable_totals() = end_totals;
-      done.set_halo_messages_per_step(most[0]);
-      done.set_halo_bytes_per_step(most[1]);
-      done.set_peak_rss_bytes(rss_sum);
-      done.set_peak_rss_bytes_max_rank(rss_max);
-      done.set_peak_rss_bytes_per_cell(static_cast<double>(rss_sum) / cells);
-      for (int k = 0; k < kStageCount; ++k)
-        (*done.mutable_stage_ms())[kStageNames[k]] = t.ms[static_cast<size_t>(k)];
-      progress.emit(e);
-    }
-  } catch (const std::exception& e) {
-    std::cerr << "erg-worker rank " << ctx.rank << ": run failed at step " << sim->step_index()
-              << ": " << e.what() << "\n";
-    erg::v1::WorkerEvent ev;
-    ev.set_step(sim->step_index());
-    ev.mutable_failed()->set_reason(job::valid_utf8(e.what()));
-    ev.mutable_failed()->set_rank(ctx.rank);
-    progress.emit(ev);
-    if (ctx.tiled()) MPI_Abort(world, 1);  // never leave the other ranks waiting
-    return 1;
-  }
-  return 0;
+  return JobRun(cfg, world).run();
 }
 
 }  // namespace erg

@@ -39,6 +39,7 @@
 
 #include <string>
 
+#include "io/run_files.h"  // step_name
 #include "job/spec.h"
 #include "sim/simulation.h"
 
@@ -64,7 +65,5 @@ int run_job(const RunConfig& cfg, MPI_Comm world = MPI_COMM_WORLD);
 // Newest checkpoint in DIR/checkpoints a resume would take (intact, agreeing
 // with DIR/job.json; sim/resume_point.h), or "" when there is none.
 std::string latest_checkpoint(const std::string& out_dir);
-
-std::string step_name(std::int64_t step);  // "step_00000042"
 
 }  // namespace erg

@@ -12,6 +12,7 @@
 #include "erg/v1/job.pb.h"
 #include "io/io.h"
 #include "sim/simulation.h"
+#include "sim/tile_plan.h"  // plan_tiles: the grid chosen
 
 namespace erg {
 
@@ -24,12 +25,6 @@ struct Tiling {
   std::unique_ptr<dist::Exchange> exchange;
   bool tiled() const { return size > 1; }
 };
-
-// The tile grid make_tiling chooses for `ranks` ranks, without MPI (ergd
-// checks a job's rank count with it at submission). Throws
-// std::invalid_argument with the reason when no grid works.
-dist::Decomposition plan_tiles(const erg::v1::JobSpec& spec, int ranks, int tiles_x = 0,
-                               int tiles_y = 0);
 
 // Collective over `world`. One rank: one tile that is the whole torus
 // (periodic exchange, per-iteration avalanching rounds). Several: tiles at
