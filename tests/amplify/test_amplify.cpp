@@ -389,11 +389,12 @@ TEST(Amplify, ReadsASnapshotWithItsWindHistory) {
   meta.seed = 5;
   const AmplifyInput flat = flat_sand(n, 6, 0);
   erg::io::SnapshotFields f;
-  f.bedrock = flat.bedrock.data();
-  f.sand = flat.sand.data();
-  f.vegetation = flat.vegetation.data();
-  f.wind = flat.wind.data();
-  f.shadow = flat.shadow.data();
+  f[erg::fields::kBedrock].data = flat.bedrock.data();
+  f[erg::fields::kSand].data = flat.sand.data();
+  f[erg::fields::kVegetation].data = flat.vegetation.data();
+  f[erg::fields::kWindX] = {flat.wind.data(), 2, 0};
+  f[erg::fields::kWindY] = {flat.wind.data(), 2, 1};
+  f[erg::fields::kShadow].data = flat.shadow.data();
   const std::string path = dir / "step.h5";
   erg::io::write_snapshot(path, meta, f);
 
@@ -414,7 +415,7 @@ TEST(Amplify, ReadsASnapshotWithItsWindHistory) {
   std::vector<float> obstacle_heights(static_cast<size_t>(n) * n, 0.0f);
   obstacle_heights[3 * n + 5] = 2.5f;
   obstacle_heights[7 * n + 1] = 0.2f;
-  f.obstacles = obstacle_heights.data();
+  f[erg::fields::kObstacles].data = obstacle_heights.data();
   const std::string with_path = dir / "with_obstacles.h5";
   erg::io::write_snapshot(with_path, meta, f);
   const AmplifyInput with = input_from_snapshot(with_path, read_spec);

@@ -14,13 +14,14 @@ inline void expect_same_snapshot(const std::string& a, const std::string& b,
                                  const std::string& what) {
   const auto sa = erg::io::read_snapshot(a);
   const auto sb = erg::io::read_snapshot(b);
-  EXPECT_TRUE(sa.bedrock == sb.bedrock) << what << ": /bedrock";
-  EXPECT_TRUE(sa.sand == sb.sand) << what << ": /sand";
-  EXPECT_TRUE(sa.vegetation == sb.vegetation) << what << ": /vegetation";
+  EXPECT_TRUE(sa[erg::fields::kBedrock] == sb[erg::fields::kBedrock]) << what << ": /bedrock";
+  EXPECT_TRUE(sa[erg::fields::kSand] == sb[erg::fields::kSand]) << what << ": /sand";
+  EXPECT_TRUE(sa[erg::fields::kVegetation] == sb[erg::fields::kVegetation])
+      << what << ": /vegetation";
   EXPECT_TRUE(sa.wind == sb.wind) << what << ": /wind";
-  EXPECT_TRUE(sa.airborne == sb.airborne) << what << ": /airborne";
-  EXPECT_TRUE(sa.shadow == sb.shadow) << what << ": /shadow";
-  EXPECT_TRUE(sa.obstacles == sb.obstacles) << what << ": /obstacles";
+  EXPECT_TRUE(sa[erg::fields::kAirborne] == sb[erg::fields::kAirborne]) << what << ": /airborne";
+  EXPECT_TRUE(sa[erg::fields::kShadow] == sb[erg::fields::kShadow]) << what << ": /shadow";
+  EXPECT_TRUE(sa[erg::fields::kObstacles] == sb[erg::fields::kObstacles]) << what << ": /obstacles";
   EXPECT_EQ(sa.meta.sand_units_total, sb.meta.sand_units_total) << what;
   EXPECT_EQ(sa.meta.bedrock_units_total, sb.meta.bedrock_units_total) << what;
   EXPECT_EQ(sa.meta.airborne_units_total, sb.meta.airborne_units_total) << what;

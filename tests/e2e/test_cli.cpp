@@ -99,9 +99,27 @@ TEST(Cli, RunWritesTheDocumentedOutputs) {
   EXPECT_DOUBLE_EQ(s.meta.cell_size_m, 2.0);
   EXPECT_DOUBLE_EQ(s.meta.time_days, 240.0);
   EXPECT_DOUBLE_EQ(s.meta.unit_m, 1.0 / 4294967296.0);
-  EXPECT_EQ(s.bedrock.size(), 64u * 48u);
+  EXPECT_EQ(s[erg::fields::kBedrock].size(), 64u * 48u);
   EXPECT_EQ(s.wind.size(), 64u * 48u * 2u);
   EXPECT_NE(s.meta.job_spec_json.find("\"nx\": \"64\""), std::string::npos);
+  // Every snapshot layer of the field registry is there, the deposition
+  // diagnostic included: sand that landed and stayed in the last step, in
+  // metres, never negative, none on the obstacle, some somewhere; none at
+  // step 0, before any step.
+  for (const erg::fields::Id id : erg::fields::snapshot_order())
+    EXPECT_EQ(s[id].size(), 64u * 48u) << erg::fields::info(id).name;
+  const std::vector<float>& deposited = s[erg::fields::kDeposited];
+  double total = 0;
+  for (std::size_t c = 0; c < deposited.size(); ++c) {
+    EXPECT_GE(deposited[c], 0.0f) << c;
+    if (s[erg::fields::kObstacles][c] > 0) {
+      EXPECT_EQ(deposited[c], 0.0f) << c;
+    }
+    total += deposited[c];
+  }
+  EXPECT_GT(total, 0.0);
+  const erg::io::Snapshot first = erg::io::read_snapshot(t / "out/snapshots/step_00000000.h5");
+  for (const float d : first[erg::fields::kDeposited]) ASSERT_EQ(d, 0.0f);
   // ... and by an independent tool (h5py): shapes, dtypes, and the exact
   // totals match the checkpoint's integers.
   const std::string py = R"(
@@ -193,7 +211,8 @@ print('heightmap ok')
 }
 
 std::vector<std::int64_t> final_sand(const std::string& dir, const std::string& step) {
-  return erg::io::read_checkpoint(dir + "/checkpoints/step_" + step + ".h5").sand_units;
+  return erg::io::read_checkpoint(dir + "/checkpoints/step_" + step + ".h5")
+      .units[erg::fields::kSand];
 }
 
 // Stopping and resuming gives the same bits as running straight through, in
@@ -211,13 +230,16 @@ TEST(Cli, ResumeContinuesBitwiseIdentically) {
     ASSERT_EQ(r.code, 0) << r.output;
     const auto a = erg::io::read_checkpoint(t / "straight/checkpoints/step_00000024.h5");
     const auto b = erg::io::read_checkpoint(t / "split/checkpoints/step_00000024.h5");
-    EXPECT_TRUE(a.sand_units == b.sand_units) << transport;
-    EXPECT_TRUE(a.bedrock_units == b.bedrock_units) << transport;
-    EXPECT_TRUE(a.airborne_units == b.airborne_units) << transport;
-    EXPECT_TRUE(a.vegetation == b.vegetation) << transport;
+    EXPECT_TRUE(a.units[erg::fields::kSand] == b.units[erg::fields::kSand]) << transport;
+    EXPECT_TRUE(a.units[erg::fields::kBedrock] == b.units[erg::fields::kBedrock]) << transport;
+    EXPECT_TRUE(a.units[erg::fields::kAirborne] == b.units[erg::fields::kAirborne]) << transport;
+    EXPECT_TRUE(a.reals[erg::fields::kVegetation] == b.reals[erg::fields::kVegetation])
+        << transport;
     const auto sa = erg::io::read_snapshot(t / "straight/snapshots/step_00000024.h5");
     const auto sb = erg::io::read_snapshot(t / "split/snapshots/step_00000024.h5");
-    EXPECT_TRUE(sa.sand == sb.sand && sa.wind == sb.wind && sa.bedrock == sb.bedrock) << transport;
+    EXPECT_TRUE(sa[erg::fields::kSand] == sb[erg::fields::kSand] && sa.wind == sb.wind &&
+                sa[erg::fields::kBedrock] == sb[erg::fields::kBedrock])
+        << transport;
     EXPECT_EQ(sa.meta.sand_units_total, sb.meta.sand_units_total);
   }
 }

@@ -112,19 +112,23 @@ void expect_same_runs(const std::string& a, const std::string& b,
   for (const auto& s : steps) {
     erg::test::expect_same_snapshot(a + "/snapshots/step_" + s + ".h5",
                                     b + "/snapshots/step_" + s + ".h5", what + " step " + s);
-    EXPECT_FALSE(erg::io::read_snapshot(a + "/snapshots/step_" + s + ".h5").obstacles.empty())
+    EXPECT_FALSE(
+        erg::io::read_snapshot(a + "/snapshots/step_" + s + ".h5")[erg::fields::kObstacles].empty())
         << what << " step " << s << ": no /obstacles";
     const std::string ca = a + "/checkpoints/step_" + s + ".h5",
                       cb = b + "/checkpoints/step_" + s + ".h5";
     if (fs::exists(ca) && fs::exists(cb)) {
       const auto ka = erg::io::read_checkpoint(ca), kb = erg::io::read_checkpoint(cb);
-      EXPECT_TRUE(ka.sand_units == kb.sand_units) << what << " step " << s << ": sand units";
-      EXPECT_TRUE(ka.bedrock_units == kb.bedrock_units)
+      EXPECT_TRUE(ka.units[erg::fields::kSand] == kb.units[erg::fields::kSand])
+          << what << " step " << s << ": sand units";
+      EXPECT_TRUE(ka.units[erg::fields::kBedrock] == kb.units[erg::fields::kBedrock])
           << what << " step " << s << ": bedrock units";
-      EXPECT_TRUE(ka.airborne_units == kb.airborne_units)
+      EXPECT_TRUE(ka.units[erg::fields::kAirborne] == kb.units[erg::fields::kAirborne])
           << what << " step " << s << ": airborne units";
-      EXPECT_TRUE(ka.vegetation == kb.vegetation) << what << " step " << s << ": vegetation";
-      EXPECT_TRUE(ka.obstacles == kb.obstacles) << what << " step " << s << ": obstacles";
+      EXPECT_TRUE(ka.reals[erg::fields::kVegetation] == kb.reals[erg::fields::kVegetation])
+          << what << " step " << s << ": vegetation";
+      EXPECT_TRUE(ka.reals[erg::fields::kObstacles] == kb.reals[erg::fields::kObstacles])
+          << what << " step " << s << ": obstacles";
     }
   }
 }
@@ -261,7 +265,7 @@ TEST(Tiling, SettledTilesWaitForASpreadingColumn) {
   int cells[2][2] = {{0, 0}, {0, 0}};
   for (int y = 0; y < 80; ++y)
     for (int x = 0; x < 96; ++x)
-      cells[y / 40][x / 48] += s.sand[static_cast<size_t>(y) * 96 + x] > 0;
+      cells[y / 40][x / 48] += s[erg::fields::kSand][static_cast<size_t>(y) * 96 + x] > 0;
   EXPECT_GT(cells[0][1], 0) << "the column did not cross into tile (1, 0)";
   EXPECT_GT(cells[1][0], 0) << "the column did not cross into tile (0, 1)";
   EXPECT_EQ(cells[1][1], 0) << "no tile stayed settled: the test no longer covers waiting tiles";

@@ -51,10 +51,11 @@ std::string make_run(const TempDir& dir) {
       w.push_back(0);
     }
   erg::io::SnapshotFields f;
-  f.bedrock = b.data();
-  f.sand = s.data();
-  f.vegetation = v.data();
-  f.wind = w.data();
+  f[erg::fields::kBedrock].data = b.data();
+  f[erg::fields::kSand].data = s.data();
+  f[erg::fields::kVegetation].data = v.data();
+  f[erg::fields::kWindX] = {w.data(), 2, 0};
+  f[erg::fields::kWindY] = {w.data(), 2, 1};
   erg::io::write_snapshot(dir.file("run/snapshots/step_00000007.h5"), meta, f);
   return dir.file("run");
 }

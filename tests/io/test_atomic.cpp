@@ -53,10 +53,11 @@ std::vector<Writer> writers() {
          meta.nx = n;
          meta.ny = n;
          SnapshotFields f;
-         f.bedrock = p.a.data();
-         f.sand = p.b.data();
-         f.vegetation = p.c.data();
-         f.wind = p.wind.data();
+         f[erg::fields::kBedrock].data = p.a.data();
+         f[erg::fields::kSand].data = p.b.data();
+         f[erg::fields::kVegetation].data = p.c.data();
+         f[erg::fields::kWindX] = {p.wind.data(), 2, 0};
+         f[erg::fields::kWindY] = {p.wind.data(), 2, 1};
          write_snapshot(path, meta, f);
        }},
       {"xdmf",
@@ -64,7 +65,11 @@ std::vector<Writer> writers() {
          SnapshotMeta meta;
          meta.nx = n;
          meta.ny = n;
-         write_xdmf(path, "s.h5", meta, true, true);
+         write_xdmf(path, "s.h5", meta,
+                    std::vector<erg::fields::Id>{erg::fields::kBedrock, erg::fields::kSand,
+                                                 erg::fields::kVegetation, erg::fields::kWindX,
+                                                 erg::fields::kWindY, erg::fields::kAirborne,
+                                                 erg::fields::kShadow});
        }},
       {"checkpoint",
        [](const std::string& path, const Payload& p, int n) {
@@ -73,12 +78,16 @@ std::vector<Writer> writers() {
          c.ny = n;
          const std::size_t cells = static_cast<std::size_t>(n) * n;
          for (std::size_t i = 0; i < cells; ++i) {
-           c.bedrock_units.push_back(static_cast<std::int64_t>(p.a[i] * 4294967296.0));
-           c.sand_units.push_back(static_cast<std::int64_t>(p.b[i] * 4294967296.0));
-           c.airborne_units.push_back(static_cast<std::int64_t>(p.c[i] * 4294967296.0));
+           c.units[erg::fields::kBedrock].push_back(
+               static_cast<std::int64_t>(p.a[i] * 4294967296.0));
+           c.units[erg::fields::kSand].push_back(static_cast<std::int64_t>(p.b[i] * 4294967296.0));
+           c.units[erg::fields::kAirborne].push_back(
+               static_cast<std::int64_t>(p.c[i] * 4294967296.0));
          }
-         c.vegetation.assign(p.c.begin(), p.c.begin() + static_cast<std::ptrdiff_t>(cells));
-         c.resistance.assign(p.b.begin(), p.b.begin() + static_cast<std::ptrdiff_t>(cells));
+         c.reals[erg::fields::kVegetation].assign(p.c.begin(),
+                                                  p.c.begin() + static_cast<std::ptrdiff_t>(cells));
+         c.reals[erg::fields::kResistance].assign(p.b.begin(),
+                                                  p.b.begin() + static_cast<std::ptrdiff_t>(cells));
          write_checkpoint(path, c);
        }},
       {"preview",

@@ -45,13 +45,14 @@ Checkpoint sample(int nx, int ny) {
   for (std::size_t i = 0; i < n; ++i) {
     // Near +-2^62, low bits random: the bits that float conversion would lose.
     const std::int64_t noise = static_cast<std::int64_t>(rng() % 1000003);
-    c.bedrock_units.push_back(i < std::size(edge) ? edge[i] : kP62 - noise);
-    c.sand_units.push_back(i % 2 ? -kP62 + noise : static_cast<std::int64_t>(rng() >> 2));
-    c.airborne_units.push_back(static_cast<std::int64_t>(rng()));
-    c.vegetation.push_back(static_cast<float>(i % 101) / 100.0f);
-    c.resistance.push_back(i == 0   ? -0.0f
-                           : i == 1 ? 1e-40f
-                                    : static_cast<float>(rng() % 997) * 1e-3f);
+    c.units[erg::fields::kBedrock].push_back(i < std::size(edge) ? edge[i] : kP62 - noise);
+    c.units[erg::fields::kSand].push_back(i % 2 ? -kP62 + noise
+                                                : static_cast<std::int64_t>(rng() >> 2));
+    c.units[erg::fields::kAirborne].push_back(static_cast<std::int64_t>(rng()));
+    c.reals[erg::fields::kVegetation].push_back(static_cast<float>(i % 101) / 100.0f);
+    c.reals[erg::fields::kResistance].push_back(i == 0   ? -0.0f
+                                                : i == 1 ? 1e-40f
+                                                         : static_cast<float>(rng() % 997) * 1e-3f);
   }
   // Deliberately not in name order: the order must survive.
   c.ledger = {{"sand_added", "170141183460469231731687303715884105727"},
@@ -86,14 +87,17 @@ TEST(Checkpoint, RoundTripsBitwise) {
   EXPECT_EQ(r.nx, c.nx);
   EXPECT_EQ(r.ny, c.ny);
   EXPECT_EQ(r.job_spec_json, c.job_spec_json);
-  expect_same_bits(r.bedrock_units, c.bedrock_units, "bedrock_units");
-  expect_same_bits(r.sand_units, c.sand_units, "sand_units");
-  expect_same_bits(r.airborne_units, c.airborne_units, "airborne_units");
-  expect_same_bits(r.vegetation, c.vegetation, "vegetation");
-  expect_same_bits(r.resistance, c.resistance, "resistance");
+  expect_same_bits(r.units[erg::fields::kBedrock], c.units[erg::fields::kBedrock], "bedrock_units");
+  expect_same_bits(r.units[erg::fields::kSand], c.units[erg::fields::kSand], "sand_units");
+  expect_same_bits(r.units[erg::fields::kAirborne], c.units[erg::fields::kAirborne],
+                   "airborne_units");
+  expect_same_bits(r.reals[erg::fields::kVegetation], c.reals[erg::fields::kVegetation],
+                   "vegetation");
+  expect_same_bits(r.reals[erg::fields::kResistance], c.reals[erg::fields::kResistance],
+                   "resistance");
   EXPECT_EQ(r.ledger, c.ledger);
-  EXPECT_EQ(r.bedrock_units[0], kP62);
-  EXPECT_EQ(r.bedrock_units[1], -kP62);
+  EXPECT_EQ(r.units[erg::fields::kBedrock][0], kP62);
+  EXPECT_EQ(r.units[erg::fields::kBedrock][1], -kP62);
   EXPECT_EQ(dir.entries(), std::set<std::string>{"ckpt.h5"});
 }
 
@@ -151,7 +155,9 @@ TEST(Checkpoint, SnapshotIsNotACheckpoint) {
   meta.ny = 2;
   std::vector<float> z(8, 0.0f);
   SnapshotFields f;
-  f.bedrock = f.sand = f.vegetation = f.wind = z.data();
+  for (const auto id : {erg::fields::kBedrock, erg::fields::kSand, erg::fields::kVegetation,
+                        erg::fields::kWindX, erg::fields::kWindY})
+    f[id].data = z.data();
   write_snapshot(dir.file("snap.h5"), meta, f);
   const std::string m = read_error(dir.file("snap.h5"));
   EXPECT_NE(m.find("not an erg checkpoint"), std::string::npos) << m;
@@ -182,7 +188,7 @@ TEST(Checkpoint, WrongShapeIsReported) {
 TEST(Checkpoint, InvalidInputIsRejectedBeforeWriting) {
   TempDir dir;
   Checkpoint c = sample(4, 3);
-  c.sand_units.pop_back();
+  c.units[erg::fields::kSand].pop_back();
   EXPECT_THROW(write_checkpoint(dir.file("a.h5"), c), IoError);
   c = sample(4, 3);
   c.ledger.push_back({"bad", "12x"});

@@ -190,13 +190,14 @@ struct SnapshotTile {
         shadow(cut(g.shadow, g.meta.nx, s)) {}
   SnapshotFields fields(bool optional) const {
     SnapshotFields f;
-    f.bedrock = bedrock.data();
-    f.sand = sand.data();
-    f.vegetation = vegetation.data();
-    f.wind = wind.data();
+    f[erg::fields::kBedrock].data = bedrock.data();
+    f[erg::fields::kSand].data = sand.data();
+    f[erg::fields::kVegetation].data = vegetation.data();
+    f[erg::fields::kWindX] = {wind.data(), 2, 0};
+    f[erg::fields::kWindY] = {wind.data(), 2, 1};
     if (optional) {
-      f.airborne = airborne.data();
-      f.shadow = shadow.data();
+      f[erg::fields::kAirborne].data = airborne.data();
+      f[erg::fields::kShadow].data = shadow.data();
     }
     return f;
   }
@@ -204,13 +205,14 @@ struct SnapshotTile {
 
 SnapshotFields global_fields(const GlobalSnapshot& g, bool optional) {
   SnapshotFields f;
-  f.bedrock = g.bedrock.data();
-  f.sand = g.sand.data();
-  f.vegetation = g.vegetation.data();
-  f.wind = g.wind.data();
+  f[erg::fields::kBedrock].data = g.bedrock.data();
+  f[erg::fields::kSand].data = g.sand.data();
+  f[erg::fields::kVegetation].data = g.vegetation.data();
+  f[erg::fields::kWindX] = {g.wind.data(), 2, 0};
+  f[erg::fields::kWindY] = {g.wind.data(), 2, 1};
   if (optional) {
-    f.airborne = g.airborne.data();
-    f.shadow = g.shadow.data();
+    f[erg::fields::kAirborne].data = g.airborne.data();
+    f[erg::fields::kShadow].data = g.shadow.data();
   }
   return f;
 }
@@ -235,13 +237,14 @@ Checkpoint global_checkpoint(int nx, int ny) {
                                -1};
   for (std::size_t i = 0; i < n; ++i) {
     const std::int64_t noise = static_cast<std::int64_t>(rng() % 1000003);
-    c.bedrock_units.push_back(i < std::size(edge) ? edge[i] : kP62 - noise);
-    c.sand_units.push_back(i % 2 ? -kP62 + noise : static_cast<std::int64_t>(rng() >> 2));
-    c.airborne_units.push_back(static_cast<std::int64_t>(rng()));
-    c.vegetation.push_back(static_cast<float>(i % 101) / 100.0f);
-    c.resistance.push_back(i == 0   ? -0.0f
-                           : i == 1 ? 1e-40f
-                                    : static_cast<float>(rng() % 997) * 1e-3f);
+    c.units[erg::fields::kBedrock].push_back(i < std::size(edge) ? edge[i] : kP62 - noise);
+    c.units[erg::fields::kSand].push_back(i % 2 ? -kP62 + noise
+                                                : static_cast<std::int64_t>(rng() >> 2));
+    c.units[erg::fields::kAirborne].push_back(static_cast<std::int64_t>(rng()));
+    c.reals[erg::fields::kVegetation].push_back(static_cast<float>(i % 101) / 100.0f);
+    c.reals[erg::fields::kResistance].push_back(i == 0   ? -0.0f
+                                                : i == 1 ? 1e-40f
+                                                         : static_cast<float>(rng() % 997) * 1e-3f);
   }
   // Not in name order: the order must survive.
   c.ledger = {{"sand_added", "170141183460469231731687303715884105727"},
@@ -257,11 +260,11 @@ Checkpoint checkpoint_tile(const Checkpoint& g, const TileSlab& s) {
   c.ny = g.ny;
   c.job_spec_json = g.job_spec_json;
   c.ledger = g.ledger;
-  c.bedrock_units = cut(g.bedrock_units, g.nx, s);
-  c.sand_units = cut(g.sand_units, g.nx, s);
-  c.airborne_units = cut(g.airborne_units, g.nx, s);
-  c.vegetation = cut(g.vegetation, g.nx, s);
-  c.resistance = cut(g.resistance, g.nx, s);
+  c.units[erg::fields::kBedrock] = cut(g.units[erg::fields::kBedrock], g.nx, s);
+  c.units[erg::fields::kSand] = cut(g.units[erg::fields::kSand], g.nx, s);
+  c.units[erg::fields::kAirborne] = cut(g.units[erg::fields::kAirborne], g.nx, s);
+  c.reals[erg::fields::kVegetation] = cut(g.reals[erg::fields::kVegetation], g.nx, s);
+  c.reals[erg::fields::kResistance] = cut(g.reals[erg::fields::kResistance], g.nx, s);
   return c;
 }
 
@@ -272,11 +275,16 @@ void expect_checkpoint_equal(const Checkpoint& got, const Checkpoint& want,
   EXPECT_EQ(got.ny, want.ny) << ctx;
   EXPECT_EQ(got.job_spec_json, want.job_spec_json) << ctx;
   EXPECT_EQ(got.ledger, want.ledger) << ctx;
-  EXPECT_TRUE(same_bits(got.bedrock_units, want.bedrock_units)) << ctx << ": bedrock_units";
-  EXPECT_TRUE(same_bits(got.sand_units, want.sand_units)) << ctx << ": sand_units";
-  EXPECT_TRUE(same_bits(got.airborne_units, want.airborne_units)) << ctx << ": airborne_units";
-  EXPECT_TRUE(same_bits(got.vegetation, want.vegetation)) << ctx << ": vegetation";
-  EXPECT_TRUE(same_bits(got.resistance, want.resistance)) << ctx << ": resistance";
+  EXPECT_TRUE(same_bits(got.units[erg::fields::kBedrock], want.units[erg::fields::kBedrock]))
+      << ctx << ": bedrock_units";
+  EXPECT_TRUE(same_bits(got.units[erg::fields::kSand], want.units[erg::fields::kSand]))
+      << ctx << ": sand_units";
+  EXPECT_TRUE(same_bits(got.units[erg::fields::kAirborne], want.units[erg::fields::kAirborne]))
+      << ctx << ": airborne_units";
+  EXPECT_TRUE(same_bits(got.reals[erg::fields::kVegetation], want.reals[erg::fields::kVegetation]))
+      << ctx << ": vegetation";
+  EXPECT_TRUE(same_bits(got.reals[erg::fields::kResistance], want.reals[erg::fields::kResistance]))
+      << ctx << ": resistance";
 }
 
 template <class F>
@@ -424,16 +432,16 @@ void expect_snapshot_equal(const Snapshot& r, const GlobalSnapshot& g, bool opti
   EXPECT_EQ(r.meta.airborne_units_total, g.meta.airborne_units_total);
   EXPECT_EQ(r.meta.seed, g.meta.seed);
   EXPECT_EQ(r.meta.backend, g.meta.backend);
-  EXPECT_TRUE(same_bits(r.bedrock, g.bedrock)) << "bedrock";
-  EXPECT_TRUE(same_bits(r.sand, g.sand)) << "sand";
-  EXPECT_TRUE(same_bits(r.vegetation, g.vegetation)) << "vegetation";
+  EXPECT_TRUE(same_bits(r[erg::fields::kBedrock], g.bedrock)) << "bedrock";
+  EXPECT_TRUE(same_bits(r[erg::fields::kSand], g.sand)) << "sand";
+  EXPECT_TRUE(same_bits(r[erg::fields::kVegetation], g.vegetation)) << "vegetation";
   EXPECT_TRUE(same_bits(r.wind, g.wind)) << "wind";
   if (optional) {
-    EXPECT_TRUE(same_bits(r.airborne, g.airborne)) << "airborne";
-    EXPECT_TRUE(same_bits(r.shadow, g.shadow)) << "shadow";
+    EXPECT_TRUE(same_bits(r[erg::fields::kAirborne], g.airborne)) << "airborne";
+    EXPECT_TRUE(same_bits(r[erg::fields::kShadow], g.shadow)) << "shadow";
   } else {
-    EXPECT_TRUE(r.airborne.empty());
-    EXPECT_TRUE(r.shadow.empty());
+    EXPECT_TRUE(r[erg::fields::kAirborne].empty());
+    EXPECT_TRUE(r[erg::fields::kShadow].empty());
   }
 }
 
@@ -527,14 +535,14 @@ TEST(ParallelSnapshotLayout, OptionalLayerMissingOnOneRankIsLeftOut) {
   const TileSlab slab = tile_of(l, nx, ny, world_rank());
   const SnapshotTile t(g, slab);
   SnapshotFields f = t.fields(true);
-  if (world_rank() == world_size() - 1) f.airborne = nullptr;
+  if (world_rank() == world_size() - 1) f[erg::fields::kAirborne].data = nullptr;
   const std::string path = dir.file("snap.h5");
   write_snapshot_parallel(MPI_COMM_WORLD, path, g.meta, f, slab, block(nx, l.px), block(ny, l.py));
   if (world_rank() == 0) {
     const Snapshot r = read_snapshot(path);
-    EXPECT_TRUE(r.airborne.empty());
-    EXPECT_TRUE(same_bits(r.shadow, g.shadow));
-    EXPECT_TRUE(same_bits(r.bedrock, g.bedrock));
+    EXPECT_TRUE(r[erg::fields::kAirborne].empty());
+    EXPECT_TRUE(same_bits(r[erg::fields::kShadow], g.shadow));
+    EXPECT_TRUE(same_bits(r[erg::fields::kBedrock], g.bedrock));
   }
   MPI_Barrier(MPI_COMM_WORLD);
 }
@@ -662,7 +670,7 @@ TEST(ParallelFailure, BadTileOnOneRankThrowsEverywhereAndKeepsTheOldFile) {
 
   // A required layer missing on the last rank.
   SnapshotFields f = t.fields(true);
-  if (rank == last) f.bedrock = nullptr;
+  if (rank == last) f[erg::fields::kBedrock].data = nullptr;
   std::string m =
       error_of([&] { write_snapshot_parallel(MPI_COMM_WORLD, path, g.meta, f, slab, cx, cy); });
   expect_failed_everywhere(m, path, "null pointer");
@@ -670,7 +678,7 @@ TEST(ParallelFailure, BadTileOnOneRankThrowsEverywhereAndKeepsTheOldFile) {
 
   // A checkpoint array of the wrong size on the last rank.
   Checkpoint c = checkpoint_tile(gc, slab);
-  if (rank == last) c.sand_units.pop_back();
+  if (rank == last) c.units[erg::fields::kSand].pop_back();
   m = error_of([&] { write_checkpoint_parallel(MPI_COMM_WORLD, path, c, slab, cx, cy); });
   expect_failed_everywhere(m, path, "'sand_units'");
   old.expect_intact("short array");
@@ -784,11 +792,13 @@ Checkpoint random_checkpoint(int n) {
   std::mt19937_64 rng(3);
   const std::size_t cells = static_cast<std::size_t>(n) * static_cast<std::size_t>(n);
   for (std::size_t i = 0; i < cells; ++i) {
-    g.bedrock_units.push_back(static_cast<std::int64_t>(rng()));
-    g.sand_units.push_back(static_cast<std::int64_t>(rng()));
-    g.airborne_units.push_back(static_cast<std::int64_t>(rng()));
-    g.vegetation.push_back(std::bit_cast<float>(static_cast<std::uint32_t>(rng() >> 34)));
-    g.resistance.push_back(std::bit_cast<float>(static_cast<std::uint32_t>(rng() >> 34)));
+    g.units[erg::fields::kBedrock].push_back(static_cast<std::int64_t>(rng()));
+    g.units[erg::fields::kSand].push_back(static_cast<std::int64_t>(rng()));
+    g.units[erg::fields::kAirborne].push_back(static_cast<std::int64_t>(rng()));
+    g.reals[erg::fields::kVegetation].push_back(
+        std::bit_cast<float>(static_cast<std::uint32_t>(rng() >> 34)));
+    g.reals[erg::fields::kResistance].push_back(
+        std::bit_cast<float>(static_cast<std::uint32_t>(rng() >> 34)));
   }
   return g;
 }
@@ -831,11 +841,14 @@ TEST(ParallelCheckpointSize, ReservedSpaceIsGivenBack) {
   const int n = 256;
   SharedDir dir;
   Checkpoint g = random_checkpoint(n);
-  for (auto* v : {&g.bedrock_units, &g.sand_units, &g.airborne_units}) {
+  for (auto* v : {&g.units[erg::fields::kBedrock], &g.units[erg::fields::kSand],
+                  &g.units[erg::fields::kAirborne]}) {
     std::fill(v->begin(), v->end(), 7);
   }
-  std::fill(g.vegetation.begin(), g.vegetation.end(), 0.5f);
-  std::fill(g.resistance.begin(), g.resistance.end(), 0.0f);
+  std::fill(g.reals[erg::fields::kVegetation].begin(), g.reals[erg::fields::kVegetation].end(),
+            0.5f);
+  std::fill(g.reals[erg::fields::kResistance].begin(), g.reals[erg::fields::kResistance].end(),
+            0.0f);
   const Layout l = square_layout(world_size());
   const TileSlab slab = tile_of(l, n, n, world_rank());
   const std::string path = dir.file("ckpt.h5");

@@ -59,13 +59,14 @@ struct Sample {
 
   SnapshotFields fields(bool optional) const {
     SnapshotFields f;
-    f.bedrock = bedrock.data();
-    f.sand = sand.data();
-    f.vegetation = vegetation.data();
-    f.wind = wind.data();
+    f[erg::fields::kBedrock].data = bedrock.data();
+    f[erg::fields::kSand].data = sand.data();
+    f[erg::fields::kVegetation].data = vegetation.data();
+    f[erg::fields::kWindX] = {wind.data(), 2, 0};
+    f[erg::fields::kWindY] = {wind.data(), 2, 1};
     if (optional) {
-      f.airborne = airborne.data();
-      f.shadow = shadow.data();
+      f[erg::fields::kAirborne].data = airborne.data();
+      f[erg::fields::kShadow].data = shadow.data();
     }
     return f;
   }
@@ -97,12 +98,12 @@ TEST(Snapshot, RoundTripsEveryDatasetAndAttribute) {
   EXPECT_EQ(r.meta.airborne_units_total, s.meta.airborne_units_total);
   EXPECT_EQ(r.meta.seed, s.meta.seed);
   EXPECT_EQ(r.meta.backend, s.meta.backend);
-  expect_same_bits(r.bedrock, s.bedrock, "bedrock");
-  expect_same_bits(r.sand, s.sand, "sand");
-  expect_same_bits(r.vegetation, s.vegetation, "vegetation");
+  expect_same_bits(r[erg::fields::kBedrock], s.bedrock, "bedrock");
+  expect_same_bits(r[erg::fields::kSand], s.sand, "sand");
+  expect_same_bits(r[erg::fields::kVegetation], s.vegetation, "vegetation");
   expect_same_bits(r.wind, s.wind, "wind");
-  expect_same_bits(r.airborne, s.airborne, "airborne");
-  expect_same_bits(r.shadow, s.shadow, "shadow");
+  expect_same_bits(r[erg::fields::kAirborne], s.airborne, "airborne");
+  expect_same_bits(r[erg::fields::kShadow], s.shadow, "shadow");
 
   // Only the snapshot is left in the directory: no temporary survives.
   EXPECT_EQ(dir.entries(), std::set<std::string>{"snap.h5"});
@@ -110,10 +111,102 @@ TEST(Snapshot, RoundTripsEveryDatasetAndAttribute) {
   // The terrain alone (previews of tiled runs): the same three layers.
   const Snapshot t = read_snapshot(path, /*terrain_only=*/true);
   EXPECT_EQ(t.meta.step, s.meta.step);
-  expect_same_bits(t.bedrock, s.bedrock, "terrain bedrock");
-  expect_same_bits(t.sand, s.sand, "terrain sand");
-  expect_same_bits(t.vegetation, s.vegetation, "terrain vegetation");
-  EXPECT_TRUE(t.wind.empty() && t.airborne.empty() && t.shadow.empty());
+  expect_same_bits(t[erg::fields::kBedrock], s.bedrock, "terrain bedrock");
+  expect_same_bits(t[erg::fields::kSand], s.sand, "terrain sand");
+  expect_same_bits(t[erg::fields::kVegetation], s.vegetation, "terrain vegetation");
+  EXPECT_TRUE(t.wind.empty() && t[erg::fields::kAirborne].empty() &&
+              t[erg::fields::kShadow].empty());
+}
+
+// A string attribute of an HDF5 object (variable or fixed length), or "".
+std::string string_attr(hid_t obj, const char* name) {
+  if (H5Aexists(obj, name) <= 0) return "";
+  const hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+  const hid_t type = H5Aget_type(a);
+  std::string out;
+  if (H5Tis_variable_str(type) > 0) {
+    char* v = nullptr;
+    const hid_t mem = H5Tget_native_type(type, H5T_DIR_DEFAULT);
+    if (H5Aread(a, mem, &v) >= 0 && v) out = v;
+    if (v) H5free_memory(v);
+    H5Tclose(mem);
+  } else {
+    out.assign(H5Tget_size(type), '\0');
+    H5Aread(a, type, out.data());
+    out = out.c_str();
+  }
+  H5Tclose(type);
+  H5Aclose(a);
+  return out;
+}
+
+herr_t collect_name(hid_t, const char* name, const H5L_info_t*, void* names) {
+  static_cast<std::vector<std::string>*>(names)->push_back(name);
+  return 0;
+}
+
+// The registry (core/fields.h) drives the snapshot: given every snapshot
+// layer of the registry, the file holds exactly those as [1][ny][nx] float32
+// datasets, in the registry's order of positions, each with the registry's
+// unit and long name, and the XDMF sidecar shows each of them (the wind's
+// components as one vector).
+TEST(Snapshot, TheFieldRegistryDrivesTheLayersAndTheirUnits) {
+  TempDir dir;
+  Sample s;
+  const std::size_t n = static_cast<std::size_t>(Sample::kNx) * Sample::kNy;
+  std::vector<std::vector<float>> values;
+  SnapshotFields f;
+  for (const fields::Id id : fields::snapshot_order()) {
+    values.emplace_back(n, static_cast<float>(id) + 0.5f);
+    f[id].data = values.back().data();
+  }
+  const std::string path = dir.file("all.h5");
+  write_snapshot(path, s.meta, f);
+  const std::vector<fields::Id> written = snapshot_layer_ids(f);
+  ASSERT_EQ(written.size(), static_cast<std::size_t>(fields::kSnapshotLayers));
+  write_xdmf(dir.file("all.xdmf"), "all.h5", s.meta, written);
+
+  const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(file, 0);
+  std::vector<std::string> names;
+  hsize_t idx = 0;
+  H5Literate(file, H5_INDEX_NAME, H5_ITER_INC, &idx, collect_name, &names);
+  std::vector<std::string> layers;
+  for (const std::string& name : names) {
+    if (name == "time" || name == "x" || name == "y") continue;
+    layers.push_back(name);
+    const fields::Id id = fields::by_name(name);
+    ASSERT_NE(id, fields::kCount) << name << " is in the file but not in the registry";
+    EXPECT_TRUE(fields::in_snapshots(id)) << name;
+  }
+  EXPECT_EQ(layers.size(), static_cast<std::size_t>(fields::kSnapshotLayers));
+  const std::string xml = read_bytes(dir.file("all.xdmf"));
+  for (const fields::Id id : fields::snapshot_order()) {
+    const fields::Info& info = fields::info(id);
+    const hid_t d = H5Dopen2(file, info.name, H5P_DEFAULT);
+    ASSERT_GE(d, 0) << info.name;
+    const hid_t space = H5Dget_space(d);
+    hsize_t dims[3] = {};
+    EXPECT_EQ(H5Sget_simple_extent_ndims(space), 3) << info.name;
+    H5Sget_simple_extent_dims(space, dims, nullptr);
+    EXPECT_EQ(dims[1], static_cast<hsize_t>(Sample::kNy)) << info.name;
+    EXPECT_EQ(dims[2], static_cast<hsize_t>(Sample::kNx)) << info.name;
+    std::vector<float> got(n);
+    H5Dread(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, got.data());
+    EXPECT_EQ(got[n / 2], static_cast<float>(id) + 0.5f) << info.name;
+    EXPECT_EQ(string_attr(d, "units"), info.unit) << info.name;
+    EXPECT_EQ(string_attr(d, "long_name"), info.snapshot.long_name) << info.name;
+    EXPECT_EQ(string_attr(d, "standard_name"), info.snapshot.standard_name) << info.name;
+    H5Sclose(space);
+    H5Dclose(d);
+    const std::string shown = id == fields::kWindX || id == fields::kWindY ? "wind" : info.name;
+    EXPECT_NE(xml.find("Name=\"" + shown + "\""), std::string::npos) << info.name;
+    EXPECT_NE(xml.find("all.h5:/" + std::string(info.name) + "<"), std::string::npos) << info.name;
+  }
+  H5Fclose(file);
+  // The new diagnostic is one of them, in metres.
+  EXPECT_TRUE(fields::in_snapshots(fields::kDeposited));
+  EXPECT_STREQ(fields::info(fields::kDeposited).unit, "m");
 }
 
 TEST(Snapshot, OptionalLayersAbsentReadBackEmpty) {
@@ -121,9 +214,9 @@ TEST(Snapshot, OptionalLayersAbsentReadBackEmpty) {
   Sample s;
   write_snapshot(dir.file("snap.h5"), s.meta, s.fields(false));
   Snapshot r = read_snapshot(dir.file("snap.h5"));
-  EXPECT_TRUE(r.airborne.empty());
-  EXPECT_TRUE(r.shadow.empty());
-  expect_same_bits(r.bedrock, s.bedrock, "bedrock");
+  EXPECT_TRUE(r[erg::fields::kAirborne].empty());
+  EXPECT_TRUE(r[erg::fields::kShadow].empty());
+  expect_same_bits(r[erg::fields::kBedrock], s.bedrock, "bedrock");
 }
 
 TEST(Snapshot, ManyChunksRoundTrip) {
@@ -140,14 +233,15 @@ TEST(Snapshot, ManyChunksRoundTrip) {
   }
   for (std::size_t i = 0; i < 2 * n; ++i) w[i] = static_cast<float>(i % 13);
   SnapshotFields f;
-  f.bedrock = a.data();
-  f.sand = b.data();
-  f.vegetation = v.data();
-  f.wind = w.data();
+  f[erg::fields::kBedrock].data = a.data();
+  f[erg::fields::kSand].data = b.data();
+  f[erg::fields::kVegetation].data = v.data();
+  f[erg::fields::kWindX] = {w.data(), 2, 0};
+  f[erg::fields::kWindY] = {w.data(), 2, 1};
   write_snapshot(dir.file("big.h5"), meta, f);
   Snapshot r = read_snapshot(dir.file("big.h5"));
-  expect_same_bits(r.bedrock, a, "bedrock");
-  expect_same_bits(r.sand, b, "sand");
+  expect_same_bits(r[erg::fields::kBedrock], a, "bedrock");
+  expect_same_bits(r[erg::fields::kSand], b, "sand");
   expect_same_bits(r.wind, w, "wind");
 }
 
@@ -251,7 +345,7 @@ TEST(Snapshot, MissingFieldIsRejectedBeforeWriting) {
   TempDir dir;
   Sample s;
   SnapshotFields f = s.fields(false);
-  f.wind = nullptr;
+  f[erg::fields::kWindX].data = nullptr;
   EXPECT_THROW(write_snapshot(dir.file("snap.h5"), s.meta, f), IoError);
   EXPECT_TRUE(dir.entries().empty());
 }
@@ -350,7 +444,10 @@ TEST(Xdmf, IsWellFormedAndReferencesTheSnapshot) {
   TempDir dir;
   Sample s;
   const std::string xmf = dir.file("snap_000042.xmf");
-  write_xdmf(xmf, "snap_000042.h5", s.meta, true, false);
+  write_xdmf(xmf, "snap_000042.h5", s.meta,
+             std::vector<erg::fields::Id>{erg::fields::kBedrock, erg::fields::kSand,
+                                          erg::fields::kVegetation, erg::fields::kWindX,
+                                          erg::fields::kWindY, erg::fields::kAirborne});
   const std::string xml = read_bytes(xmf);
 
   std::string error;
@@ -394,7 +491,10 @@ TEST(Xdmf, EscapesFileNamesAndKeepsFullTimePrecision) {
   Sample s;
   s.meta.time_days = 0.1;  // not exact in binary: needs 17 digits to round-trip
   const std::string xmf = dir.file("a.xmf");
-  write_xdmf(xmf, "run&co<1>.h5", s.meta, false, true);
+  write_xdmf(xmf, "run&co<1>.h5", s.meta,
+             std::vector<erg::fields::Id>{erg::fields::kBedrock, erg::fields::kSand,
+                                          erg::fields::kVegetation, erg::fields::kWindX,
+                                          erg::fields::kWindY, erg::fields::kShadow});
   const std::string xml = read_bytes(xmf);
   std::string error;
   parse_tags(xml, &error);
@@ -420,7 +520,10 @@ TEST(Xdmf, RunCollectsEverySnapshotInStepOrder) {
     const std::string name =
         "step_" + std::string(step < 100000000 ? 8 - std::to_string(step).size() : 0, '0') +
         std::to_string(step);
-    write_xdmf(dir.file("snapshots/" + name + ".xdmf"), name + ".h5", s.meta, false, false);
+    write_xdmf(dir.file("snapshots/" + name + ".xdmf"), name + ".h5", s.meta,
+               std::vector<erg::fields::Id>{erg::fields::kBedrock, erg::fields::kSand,
+                                            erg::fields::kVegetation, erg::fields::kWindX,
+                                            erg::fields::kWindY});
     write_run_xdmf(dir.path().string());
   }
   testing::write_bytes(dir.file("snapshots/notes.xdmf"), "not a snapshot");

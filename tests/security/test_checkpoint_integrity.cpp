@@ -32,12 +32,12 @@ Checkpoint sample(int nx, int ny, bool obstacles = false) {
   c.job_spec_json = R"({"name":"integrity","model":{"warp_small_radius_m":50}})";
   const std::size_t n = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
   for (std::size_t i = 0; i < n; ++i) {
-    c.bedrock_units.push_back(static_cast<std::int64_t>(i * 7919 % 1000) << 20);
-    c.sand_units.push_back(static_cast<std::int64_t>(i * 104729 % 5000) << 18);
-    c.airborne_units.push_back(static_cast<std::int64_t>(i % 3));
-    c.vegetation.push_back(static_cast<float>(i % 11) / 10.0f);
-    c.resistance.push_back(static_cast<float>(i % 5) / 4.0f);
-    if (obstacles) c.obstacles.push_back(i % 17 == 0 ? 2.5f : 0.0f);
+    c.units[erg::fields::kBedrock].push_back(static_cast<std::int64_t>(i * 7919 % 1000) << 20);
+    c.units[erg::fields::kSand].push_back(static_cast<std::int64_t>(i * 104729 % 5000) << 18);
+    c.units[erg::fields::kAirborne].push_back(static_cast<std::int64_t>(i % 3));
+    c.reals[erg::fields::kVegetation].push_back(static_cast<float>(i % 11) / 10.0f);
+    c.reals[erg::fields::kResistance].push_back(static_cast<float>(i % 5) / 4.0f);
+    if (obstacles) c.reals[erg::fields::kObstacles].push_back(i % 17 == 0 ? 2.5f : 0.0f);
   }
   c.ledger = {{"sand_added", "123456789012345678901234567890"}};
   return c;

@@ -40,7 +40,8 @@ inline std::vector<double> heights_m(const TileState& s) {
   std::vector<double> h(static_cast<size_t>(g.nx) * g.ny);
   for (int y = 0; y < g.ny; ++y)
     for (int x = 0; x < g.nx; ++x)
-      h[static_cast<size_t>(y) * g.nx + x] = units_to_m_d(s.bedrock(x, y) + s.sand(x, y));
+      h[static_cast<size_t>(y) * g.nx + x] =
+          units_to_m_d(s.units[erg::fields::kBedrock](x, y) + s.units[erg::fields::kSand](x, y));
   return h;
 }
 
@@ -49,7 +50,7 @@ inline std::vector<double> sand_m(const TileState& s) {
   std::vector<double> h(static_cast<size_t>(g.nx) * g.ny);
   for (int y = 0; y < g.ny; ++y)
     for (int x = 0; x < g.nx; ++x)
-      h[static_cast<size_t>(y) * g.nx + x] = units_to_m_d(s.sand(x, y));
+      h[static_cast<size_t>(y) * g.nx + x] = units_to_m_d(s.units[erg::fields::kSand](x, y));
   return h;
 }
 

@@ -128,7 +128,9 @@ TEST(Behaviour, SandLeavingTheLastColumnReentersAtColumnZero) {
   auto column_sand = [&](const TileState& st, int x0, int x1) {
     double m = 0;
     for (int y = 0; y < ny; ++y)
-      for (int x = x0; x < x1; ++x) m += units_to_m_d(st.sand(x, y) + st.airborne(x, y));
+      for (int x = x0; x < x1; ++x)
+        m += units_to_m_d(st.units[erg::fields::kSand](x, y) +
+                          st.units[erg::fields::kAirborne](x, y));
     return m;
   };
   const Totals t0 = sim.totals();
@@ -199,11 +201,11 @@ TEST(Behaviour, ShadowIsZeroOnFlatGroundAndOneBelowACliff) {
     return std::min(10.0, (cx - 120) * std::tan(4 * kPi / 180));
   };
   for (int y = 0; y < ny; ++y)
-    for (int x = 0; x < nx; ++x) st.bedrock(x, y) = m_to_units(plateau(x));
+    for (int x = 0; x < nx; ++x) st.units[erg::fields::kBedrock](x, y) = m_to_units(plateau(x));
   sim.backend().upload(st);
   sim.step();
   std::vector<float> shadow;
-  sim.backend().download_shadow(shadow);
+  sim.backend().download_owned(fields::kShadow, shadow);
   auto at = [&](int x) { return shadow[static_cast<size_t>(16) * nx + x]; };
   for (int x = 20; x < 55; ++x) EXPECT_EQ(at(x), 0.0f) << "flat plateau x=" << x;
   for (int x = 100; x < 118; ++x) EXPECT_EQ(at(x), 0.0f) << "flat ground x=" << x;
@@ -258,8 +260,9 @@ TEST(Behaviour, SandAccumulatesOnTheWindwardSideOfAWall) {
       const TileState st = sim.state();
       for (int y = 0; y < ny; ++y)
         for (int x = 0; x < nx; ++x)
-          if (obstacles::is_obstacle(st.obstacles(x, y)))
-            inside += st.sand(x, y) != 0 || st.airborne(x, y) != 0;
+          if (obstacles::is_obstacle(st.reals[erg::fields::kObstacles](x, y)))
+            inside += st.units[erg::fields::kSand](x, y) != 0 ||
+                      st.units[erg::fields::kAirborne](x, y) != 0;
     }
   }
   EXPECT_EQ(inside, 0) << "sand inside the wall";
@@ -305,9 +308,10 @@ TEST(Behaviour, ObstaclesCastAWindShadowThatGrowsWithTheirHeight) {
                    ".", cpu_threads(1));
     sim.step();
     std::vector<float> shadow;
-    sim.backend().download_shadow(shadow);
+    sim.backend().download_owned(fields::kShadow, shadow);
     const TileState st = sim.state();
-    EXPECT_EQ(units_to_m_d(st.bedrock(60, 16)), 0.0) << "the obstacle went into the bedrock";
+    EXPECT_EQ(units_to_m_d(st.units[erg::fields::kBedrock](60, 16)), 0.0)
+        << "the obstacle went into the bedrock";
     return shadow;
   };
   for (const double h : {1.0, 4.0}) {
@@ -359,8 +363,8 @@ EchoProfile echo_profile(bool echo) {
     for (int x = 0; x < nx; ++x) {
       // Plateau 8 m high on [120, 160), a 17 degree slope down to x = 186.
       const double h = x < foot ? 0.0 : x < 160 ? 8.0 : std::max(0.0, 8.0 - (x - 159) * 0.3);
-      st.bedrock(x, y) = m_to_units(h);
-      st.sand(x, y) = x < foot - 40 || x >= 190 ? m_to_units(0.5) : 0;
+      st.units[erg::fields::kBedrock](x, y) = m_to_units(h);
+      st.units[erg::fields::kSand](x, y) = x < foot - 40 || x >= 190 ? m_to_units(0.5) : 0;
     }
   sim.backend().upload(st);
   for (int s = 0; s < 150; ++s) sim.step();

@@ -66,7 +66,8 @@ Outcome run_checked(const std::string& json, int threads, bool abrasion, int ste
       long negative = 0;
       for (int y = 0; y < st.geom.ny; ++y)
         for (int x = 0; x < st.geom.nx; ++x)
-          negative += (st.sand(x, y) < 0) + (st.airborne(x, y) < 0);
+          negative += (st.units[erg::fields::kSand](x, y) < 0) +
+                      (st.units[erg::fields::kAirborne](x, y) < 0);
       EXPECT_EQ(negative, 0) << "cells with negative sand or airborne sand at step " << s;
     }
   }
@@ -74,9 +75,12 @@ Outcome run_checked(const std::string& json, int threads, bool abrasion, int ste
 }
 
 void expect_bitwise_equal(const TileState& a, const TileState& b, const std::string& what) {
-  EXPECT_TRUE(owned(a.sand) == owned(b.sand)) << what << ": sand differs";
-  EXPECT_TRUE(owned(a.bedrock) == owned(b.bedrock)) << what << ": bedrock differs";
-  EXPECT_TRUE(owned(a.airborne) == owned(b.airborne)) << what << ": airborne sand differs";
+  EXPECT_TRUE(owned(a.units[erg::fields::kSand]) == owned(b.units[erg::fields::kSand]))
+      << what << ": sand differs";
+  EXPECT_TRUE(owned(a.units[erg::fields::kBedrock]) == owned(b.units[erg::fields::kBedrock]))
+      << what << ": bedrock differs";
+  EXPECT_TRUE(owned(a.units[erg::fields::kAirborne]) == owned(b.units[erg::fields::kAirborne]))
+      << what << ": airborne sand differs";
 }
 
 class Exactness : public ::testing::TestWithParam<std::tuple<std::string, bool>> {};
@@ -93,7 +97,9 @@ TEST_P(Exactness, ConservedNonNegativeAndThreadInvariant) {
   expect_bitwise_equal(two.state, again.state, "two runs");
   // The run did something: sand moved, and with abrasion bedrock was abraded.
   Simulation fresh(spec_from(json), ".", cpu_threads(1));
-  EXPECT_FALSE(owned(fresh.state().sand) == owned(one.state.sand)) << "nothing moved";
+  EXPECT_FALSE(owned(fresh.state().units[erg::fields::kSand]) ==
+               owned(one.state.units[erg::fields::kSand]))
+      << "nothing moved";
   if (abrasion) {
     EXPECT_LT(one.totals.bedrock, fresh.totals().bedrock) << "no abrasion happened";
   }
@@ -177,10 +183,11 @@ TEST_P(ExactnessObstacles, ConservedNoSandInsideAndThreadInvariant) {
         const TileState st = sim.state();
         for (int y = 0; y < st.geom.ny; ++y)
           for (int x = 0; x < st.geom.nx; ++x) {
-            EXPECT_GE(st.sand(x, y), 0);
-            if (!obstacles::is_obstacle(st.obstacles(x, y))) continue;
+            EXPECT_GE(st.units[erg::fields::kSand](x, y), 0);
+            if (!obstacles::is_obstacle(st.reals[erg::fields::kObstacles](x, y))) continue;
             ++obstacle_cells;
-            inside += st.sand(x, y) != 0 || st.airborne(x, y) != 0;
+            inside += st.units[erg::fields::kSand](x, y) != 0 ||
+                      st.units[erg::fields::kAirborne](x, y) != 0;
           }
       }
     }

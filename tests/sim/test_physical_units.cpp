@@ -110,8 +110,10 @@ TEST(PhysicalUnits, BelowThresholdNothingMoves) {
     const TileState before = sim.state();
     for (int k = 0; k < 40; ++k) sim.step();
     const TileState after = sim.state();
-    EXPECT_EQ(test::owned(after.sand), test::owned(before.sand)) << transport;
-    for (auto a : test::owned(after.airborne)) ASSERT_EQ(a, 0) << transport;
+    EXPECT_EQ(test::owned(after.units[erg::fields::kSand]),
+              test::owned(before.units[erg::fields::kSand]))
+        << transport;
+    for (auto a : test::owned(after.units[erg::fields::kAirborne])) ASSERT_EQ(a, 0) << transport;
     // Just above the threshold, sand moves.
     const std::string above = R"({"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": )" +
                               std::to_string(1.2 * ut) + "}}";
@@ -119,7 +121,9 @@ TEST(PhysicalUnits, BelowThresholdNothingMoves) {
     spec2.mutable_wind()->mutable_constant()->set_speed_mps(1.2 * ut);
     Simulation sim2(spec2, "", test::cpu_threads(1));
     for (int k = 0; k < 5; ++k) sim2.step();
-    EXPECT_NE(test::owned(sim2.state().sand), test::owned(before.sand)) << transport;
+    EXPECT_NE(test::owned(sim2.state().units[erg::fields::kSand]),
+              test::owned(before.units[erg::fields::kSand]))
+        << transport;
   }
 }
 
@@ -212,10 +216,11 @@ TEST(PhysicalUnits, SnapshotsCarryTimeWindAndCalibration) {
   const std::string path = ::testing::TempDir() + "/physical_units_snapshot.h5";
   const Simulation::Output o = sim.output();
   io::SnapshotFields f;
-  f.bedrock = o.bedrock.data();
-  f.sand = o.sand.data();
-  f.vegetation = o.vegetation.data();
-  f.wind = o.wind.data();
+  f[erg::fields::kBedrock].data = o[erg::fields::kBedrock].data();
+  f[erg::fields::kSand].data = o[erg::fields::kSand].data();
+  f[erg::fields::kVegetation].data = o[erg::fields::kVegetation].data();
+  f[erg::fields::kWindX].data = o[erg::fields::kWindX].data();
+  f[erg::fields::kWindY].data = o[erg::fields::kWindY].data();
   io::write_snapshot(path, m, f);
   const io::Snapshot back = io::read_snapshot(path, true);
   EXPECT_DOUBLE_EQ(back.meta.time_s, 3 * c.dt_s);

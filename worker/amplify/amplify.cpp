@@ -158,20 +158,21 @@ AmplifyInput input_from_snapshot(const std::string& path, erg::v1::JobSpec& spec
   in.nx = snap.meta.nx;
   in.ny = snap.meta.ny;
   in.cell_size_m = snap.meta.cell_size_m;
-  in.bedrock = std::move(snap.bedrock);
-  in.sand = std::move(snap.sand);
-  in.vegetation = std::move(snap.vegetation);
+  in.bedrock = std::move(snap[fields::kBedrock]);
+  in.sand = std::move(snap[fields::kSand]);
+  in.vegetation = std::move(snap[fields::kVegetation]);
   in.wind = std::move(snap.wind);
-  in.shadow = std::move(snap.shadow);
+  in.shadow = std::move(snap[fields::kShadow]);
   in.seed = snap.meta.seed;
   // /obstacles holds obstacle heights in metres (0: none); amplification
   // only needs where they are. Snapshots of runs without obstacles have no
   // such dataset, or one of zeros: both mean "no obstacles".
-  if (!snap.obstacles.empty() &&
-      std::any_of(snap.obstacles.begin(), snap.obstacles.end(), [](float h) { return h > 0; })) {
-    in.obstacles.resize(snap.obstacles.size());
-    std::transform(snap.obstacles.begin(), snap.obstacles.end(), in.obstacles.begin(),
-                   [](float h) { return h > 0 ? 1.0f : 0.0f; });
+  if (!snap[fields::kObstacles].empty() &&
+      std::any_of(snap[fields::kObstacles].begin(), snap[fields::kObstacles].end(),
+                  [](float h) { return h > 0; })) {
+    in.obstacles.resize(snap[fields::kObstacles].size());
+    std::transform(snap[fields::kObstacles].begin(), snap[fields::kObstacles].end(),
+                   in.obstacles.begin(), [](float h) { return h > 0 ? 1.0f : 0.0f; });
   }
   const std::int64_t steps = spec.amplify().wind_history_steps();
   const std::int64_t first = std::max<std::int64_t>(0, snap.meta.step - steps + 1);

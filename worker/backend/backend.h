@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/fields.h"
 #include "core/vec2.h"
 #include "dist/exchange.h"
 #include "sim/model.h"
@@ -26,10 +27,9 @@ class Backend {
   // Exact state in and out (host TileState <-> backend storage).
   virtual void upload(const TileState& s) = 0;
   virtual void download(TileState& s) = 0;
-  // Derived fields of the last step at the owned cells, row-major [ny][nx]:
-  // wind as (x, y) pairs, shadow, airborne sand in metres.
-  virtual void download_wind(std::vector<float>& wind_xy) = 0;
-  virtual void download_shadow(std::vector<float>& shadow) = 0;
+  // Any registry field (core/fields.h) at the owned cells, row-major
+  // [ny][nx], in its unit (integer units as metres): what snapshots hold.
+  virtual void download_owned(fields::Id id, std::vector<float>& out) = 0;
 
   // --- the stages, in pipeline order --------------------------------------
   // Surface wind: venturi [P19 4.2] and multi-scale warping of the

@@ -19,16 +19,16 @@ std::vector<float> heights_for_export(const io::Snapshot& snap, Layer layer, con
     switch (layer) {
       case Layer::kHeight:
         // The ground: bedrock under its sand (README, snapshot contract).
-        src[k] = snap.bedrock[k] + snap.sand[k];
+        src[k] = snap[fields::kBedrock][k] + snap[fields::kSand][k];
         break;
       case Layer::kSand:
-        src[k] = snap.sand[k];
+        src[k] = snap[fields::kSand][k];
         break;
       case Layer::kBedrock:
-        src[k] = snap.bedrock[k];
+        src[k] = snap[fields::kBedrock][k];
         break;
       case Layer::kVegetation:
-        src[k] = snap.vegetation[k];
+        src[k] = snap[fields::kVegetation][k];
         break;
     }
   }

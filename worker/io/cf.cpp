@@ -7,26 +7,13 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/fields.h"
 #include "io/atomic_file.h"
 #include "io/hdf5_util.h"
 
 namespace erg::io::detail {
 
 namespace {
-
-// Heights are above the model's own datum (z = 0), not the geoid, so the CF
-// names *_altitude do not apply; the fraction and the wind components have
-// exact standard names (x is east and y north in every erg file).
-constexpr std::array<CfVariable, 8> kVariables = {{
-    {"bedrock", "bedrock surface height above the model datum", "m", ""},
-    {"sand", "thickness of the sand on the ground", "m", ""},
-    {"vegetation", "vegetation cover fraction", "1", "vegetation_area_fraction"},
-    {"wind_x", "surface wind, x (eastward) component", "m s-1", "eastward_wind"},
-    {"wind_y", "surface wind, y (northward) component", "m s-1", "northward_wind"},
-    {"airborne", "thickness of the sand in saltation (as deposited)", "m", ""},
-    {"shadow", "wind shadow of the upwind relief", "1", ""},
-    {"obstacles", "obstacle height above the ground (0: none)", "m", ""},
-}};
 
 struct Coordinate {
   const char* name;
@@ -67,13 +54,6 @@ void write_coordinate(hid_t file, const Coordinate& c, const std::vector<double>
 
 }  // namespace
 
-const CfVariable* cf_variable(const std::string& name) {
-  for (const CfVariable& v : kVariables) {
-    if (name == v.name) return &v;
-  }
-  return nullptr;
-}
-
 double snapshot_time_days(const SnapshotMeta& meta) {
   return meta.time_days;
 }
@@ -108,10 +88,13 @@ void write_cf(hid_t file, const SnapshotMeta& meta, const std::vector<std::strin
     check(H5DSattach_scale(dset.get(), time.get(), 0), path, "cannot attach /time to " + what);
     check(H5DSattach_scale(dset.get(), y.get(), 1), path, "cannot attach /y to " + what);
     check(H5DSattach_scale(dset.get(), x.get(), 2), path, "cannot attach /x to " + what);
-    if (const CfVariable* v = cf_variable(name)) {
-      write_attr_str(dset.get(), "units", v->units, path);
-      write_attr_str(dset.get(), "long_name", v->long_name, path);
-      if (*v->standard_name) write_attr_str(dset.get(), "standard_name", v->standard_name, path);
+    // The metadata of the registry (core/fields.h).
+    if (const fields::Id id = fields::by_name(name); id != fields::kCount) {
+      const fields::Info& f = fields::info(id);
+      write_attr_str(dset.get(), "units", f.unit, path);
+      write_attr_str(dset.get(), "long_name", f.snapshot.long_name, path);
+      if (*f.snapshot.standard_name)
+        write_attr_str(dset.get(), "standard_name", f.snapshot.standard_name, path);
     }
     close_checked(dset, path, "cannot close " + what);
   }

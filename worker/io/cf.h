@@ -2,7 +2,8 @@
 // CF conventions (CF-1.10), so that netCDF tools (ncdump, xarray over
 // h5netcdf, Panoply, ...) see real dimensions and coordinates rather than
 // anonymous HDF5 arrays. Shared by the serial and the parallel snapshot
-// writers; kept apart from the field lists so that either can change alone.
+// writers; the layers, their units and names come from the field registry
+// (core/fields.h).
 //
 // The layout (README "Snapshot contract"):
 //   /time [1]        float64, simulated time since the start of the run (days)
@@ -22,18 +23,6 @@
 
 namespace erg::io::detail {
 
-// CF metadata of one snapshot variable.
-struct CfVariable {
-  const char* name;
-  const char* long_name;
-  const char* units;          // UDUNITS ("m", "1", "m s-1")
-  const char* standard_name;  // from the CF standard name table; "" where none fits
-};
-
-// The metadata of a layer written by erg (bedrock, sand, ...); null for an
-// unknown name.
-const CfVariable* cf_variable(const std::string& name);
-
 // The simulated time of a snapshot, in days since the start of the run: the
 // one place that decides which time a snapshot's CF coordinate and XDMF
 // <Time> carry.
@@ -42,11 +31,10 @@ double snapshot_time_days(const SnapshotMeta& meta);
 // Creates /time, /y and /x (contiguous float64 datasets, dimension scales,
 // with their CF attributes), attaches them to the layers named (which must
 // exist, shaped [1][ny][nx]) and gives each layer its units, long_name and
-// standard_name; writes the global Conventions, title and source. The
-// coordinate values are written with `dxpl` (H5P_DEFAULT, or a collective
-// transfer list in the parallel writer, where only the rank with
-// `write_values` selects them and the others take part with an empty
-// selection). In the parallel writer every rank calls this with the same
+// standard_name from the field registry (core/fields.h); writes the global Conventions, title and
+// source. The coordinate values are written with `dxpl` (H5P_DEFAULT, or a collective transfer list
+// in the parallel writer, where only the rank with `write_values` selects them and the others take
+// part with an empty selection). In the parallel writer every rank calls this with the same
 // arguments (the metadata operations are collective).
 void write_cf(hid_t file, const SnapshotMeta& meta, const std::vector<std::string>& layers,
               hid_t dxpl, bool write_values, const std::string& path);

@@ -1,14 +1,18 @@
 // Checkpoints: the exact integer state of a run in one HDF5 file, enough to
 // continue bitwise identically. Layout (all [ny][nx], deflate + shuffle):
-//   int64   /bedrock_units /sand_units /airborne_units
-//   float32 /vegetation /resistance
+// one dataset per state field of the registry (core/fields.h), in its order
+// and under its checkpoint name: int64 /bedrock_units /sand_units
+// /airborne_units, float32 /vegetation /resistance /obstacles (optional:
+// files written before obstacles existed lack it);
 // root attributes: format = "erg-checkpoint", format_version = 2, step, nx,
 // ny (int64), job_spec (string), one string "ledger_<name>" per ledger and,
 // written last, "checksums" (integrity.h): readers verify every dataset, the
 // spec and the other attributes against it.
+#include <array>
 #include <climits>
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -56,6 +60,20 @@ herr_t collect_ledger_name(hid_t /*loc*/, const char* name, const H5A_info_t* /*
 }  // namespace
 
 // ---- shared with the parallel writer and reader (formats.h) -------------------
+
+void detail::check_checkpoint_sizes(const Checkpoint& c, std::size_t n, const std::string& path,
+                                    const std::string& expected, const std::string& suffix) {
+  for (int i = 0; i < fields::kCount; ++i) {
+    const auto id = static_cast<fields::Id>(i);
+    const fields::Info& f = fields::info(id);
+    if (!f.state || (f.checkpoint_optional && c.size(id) == 0)) continue;
+    if (c.size(id) != n) {
+      fail(path, std::string("checkpoint field '") + f.checkpoint + "' has " +
+                     std::to_string(c.size(id)) + " values, expected " + expected + " = " +
+                     std::to_string(n) + suffix);
+    }
+  }
+}
 
 void detail::check_checkpoint_ledger(const Checkpoint& c, const std::string& path) {
   for (std::size_t i = 0; i < c.ledger.size(); ++i) {
@@ -172,18 +190,8 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
     fail(path, "invalid grid " + std::to_string(c.nx) + " x " + std::to_string(c.ny) +
                    " (nx and ny must be positive)");
   }
-  const std::size_t n = static_cast<std::size_t>(c.nx) * static_cast<std::size_t>(c.ny);
-  auto check_size = [&](const char* name, std::size_t size) {
-    if (size != n) {
-      fail(path, std::string("checkpoint field '") + name + "' has " + std::to_string(size) +
-                     " values, expected nx * ny = " + std::to_string(n));
-    }
-  };
-  check_size("bedrock_units", c.bedrock_units.size());
-  check_size("sand_units", c.sand_units.size());
-  check_size("airborne_units", c.airborne_units.size());
-  check_size("vegetation", c.vegetation.size());
-  check_size("resistance", c.resistance.size());
+  detail::check_checkpoint_sizes(c, static_cast<std::size_t>(c.nx) * static_cast<std::size_t>(c.ny),
+                                 path, "nx * ny");
   detail::check_checkpoint_ledger(c, path);
 
   AtomicFile out(path);
@@ -194,30 +202,25 @@ void write_checkpoint(const std::string& path, const Checkpoint& c) {
     Hid file = detail::create_hdf5_in_memory(out, fcpl.get());
     const hid_t fid = file.get();
     const std::vector<hsize_t> grid = {static_cast<hsize_t>(c.ny), static_cast<hsize_t>(c.nx)};
-    auto ints = [&](const char* name, const std::vector<std::int64_t>& v) {
-      detail::write_dataset(fid, name, H5T_STD_I64LE, H5T_NATIVE_INT64, grid, v.data(),
-                            kCheckpointDeflate, path);
-    };
-    auto floats = [&](const char* name, const std::vector<float>& v) {
-      detail::write_dataset(fid, name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, grid, v.data(),
-                            kCheckpointDeflate, path);
-    };
-    ints("bedrock_units", c.bedrock_units);
-    ints("sand_units", c.sand_units);
-    ints("airborne_units", c.airborne_units);
-    floats("vegetation", c.vegetation);
-    floats("resistance", c.resistance);
-    if (!c.obstacles.empty()) {
-      check_size("obstacles", c.obstacles.size());
-      floats("obstacles", c.obstacles);
+    std::array<bool, fields::kCount> present{};
+    for (int i = 0; i < fields::kCount; ++i) {
+      const auto id = static_cast<fields::Id>(i);
+      const fields::Info& f = fields::info(id);
+      if (!f.state || (f.checkpoint_optional && c.size(id) == 0)) continue;
+      present[id] = true;
+      if (f.type == fields::Type::kUnits)
+        detail::write_dataset(fid, f.checkpoint, H5T_STD_I64LE, H5T_NATIVE_INT64, grid,
+                              c.units[id].data(), kCheckpointDeflate, path);
+      else
+        detail::write_dataset(fid, f.checkpoint, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, grid,
+                              c.reals[id].data(), kCheckpointDeflate, path);
     }
 
     detail::write_checkpoint_attrs(fid, c, path);
     const TileSlab all{0, 0, c.nx, c.ny};
     detail::write_checkpoint_checksums(
         fid,
-        detail::checkpoint_checksums_done(
-            detail::checkpoint_cell_checksums(c, all, !c.obstacles.empty()), c),
+        detail::checkpoint_checksums_done(detail::checkpoint_cell_checksums(c, all, present), c),
         path);
 
     image = detail::take_hdf5_image(file, path);
@@ -236,23 +239,17 @@ Checkpoint read_checkpoint(const std::string& path) {
 
   // Every dataset must be exactly [ny][nx]; read_dataset says which is not.
   const std::vector<hsize_t> grid = {static_cast<hsize_t>(ny), static_cast<hsize_t>(nx)};
-  c.bedrock_units =
-      detail::read_dataset<std::int64_t>(fid, "bedrock_units", H5T_NATIVE_INT64, grid, path);
-  c.sand_units =
-      detail::read_dataset<std::int64_t>(fid, "sand_units", H5T_NATIVE_INT64, grid, path);
-  c.airborne_units =
-      detail::read_dataset<std::int64_t>(fid, "airborne_units", H5T_NATIVE_INT64, grid, path);
-  c.vegetation = detail::read_dataset<float>(fid, "vegetation", H5T_NATIVE_FLOAT, grid, path);
-  c.resistance = detail::read_dataset<float>(fid, "resistance", H5T_NATIVE_FLOAT, grid, path);
-  if (detail::link_exists(fid, "obstacles"))
-    c.obstacles = detail::read_dataset<float>(fid, "obstacles", H5T_NATIVE_FLOAT, grid, path);
+  const std::array<bool, fields::kCount> present =
+      detail::read_checkpoint_fields(fid, c, [&](const char* name, hid_t mem_type, auto& values) {
+        using T = typename std::decay_t<decltype(values)>::value_type;
+        values = detail::read_dataset<T>(fid, name, mem_type, grid, path);
+      });
 
   detail::read_checkpoint_ledger(fid, path, c);
   const TileSlab all{0, 0, c.nx, c.ny};
-  detail::verify_checkpoint(fid,
-                            detail::checkpoint_checksums_done(
-                                detail::checkpoint_cell_checksums(c, all, !c.obstacles.empty()), c),
-                            path);
+  detail::verify_checkpoint(
+      fid, detail::checkpoint_checksums_done(detail::checkpoint_cell_checksums(c, all, present), c),
+      path);
   return c;
 }
 

@@ -8,6 +8,7 @@
 
 #include <hdf5.h>
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -29,18 +30,20 @@ void check_grid(const std::string& path, int nx, int ny);
 
 // One float32 layer of a snapshot: /<name>, [1][ny][nx] (dimensions time, y,
 // x; cf.h). Its values in memory are data[stride * c + offset] for the cells c
-// in row-major order: stride 2 and offset 0 or 1 pick the x or y component of
-// the interleaved wind.
+// in row-major order (io.h LayerValues).
 struct SnapshotLayer {
   const char* name;
   const float* data;
   int stride = 1, offset = 0;
 };
-// The layers in file order: bedrock, sand, vegetation, wind_x, wind_y, then
-// airborne, shadow and obstacles where asked for (their pointers as given,
-// which may be null).
-std::vector<SnapshotLayer> snapshot_layers(const SnapshotFields& f, bool with_airborne,
-                                           bool with_shadow, bool with_obstacles = false);
+// The layers `ids` of f (registry snapshot fields, io.h snapshot_layer_ids),
+// in that order, their pointers as given (which may be null).
+std::vector<SnapshotLayer> snapshot_layers(const SnapshotFields& f,
+                                           const std::vector<fields::Id>& ids);
+// Fails unless every required layer (not snapshot.optional in the registry)
+// is given ("snapshot needs bedrock, sand, vegetation, wind_x, wind_y ...").
+void check_required_layers(const std::string& path, const SnapshotFields& f,
+                           const std::string& where = "");
 
 // The memory dataspace of a layer's values for `cells` cells (a strided
 // selection of cells * stride floats).
@@ -56,6 +59,30 @@ void write_physical_attrs(hid_t file, const SnapshotMeta& meta, const std::strin
 
 // Checkpoints are written often and read only on restart: favour speed.
 inline constexpr int kCheckpointDeflate = 1;
+
+// Fails unless every state field that is not checkpoint_optional has n values
+// ("checkpoint field 'sand_units' has 3 values, expected <expected> = n<suffix>").
+void check_checkpoint_sizes(const Checkpoint& c, std::size_t n, const std::string& path,
+                            const std::string& expected, const std::string& suffix = "");
+
+// Reads every state field of the registry that the file has (an optional
+// one may be missing) with read(name, H5T_NATIVE_INT64 or H5T_NATIVE_FLOAT,
+// c.units[id] or c.reals[id]); returns which were there.
+template <class Read>
+std::array<bool, fields::kCount> read_checkpoint_fields(hid_t fid, Checkpoint& c, Read&& read) {
+  std::array<bool, fields::kCount> present{};
+  for (int i = 0; i < fields::kCount; ++i) {
+    const auto id = static_cast<fields::Id>(i);
+    const fields::Info& f = fields::info(id);
+    if (!f.state || (f.checkpoint_optional && !link_exists(fid, f.checkpoint))) continue;
+    present[id] = true;
+    if (f.type == fields::Type::kUnits)
+      read(f.checkpoint, H5T_NATIVE_INT64, c.units[id]);
+    else
+      read(f.checkpoint, H5T_NATIVE_FLOAT, c.reals[id]);
+  }
+  return present;
+}
 
 // Fails on an empty, repeated or non-decimal ledger entry.
 void check_checkpoint_ledger(const Checkpoint& c, const std::string& path);

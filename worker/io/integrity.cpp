@@ -158,14 +158,17 @@ std::string Checksums::mismatch(const Checksums& stored, bool complete) const {
 }
 
 Checksums checkpoint_cell_checksums(const Checkpoint& c, const TileSlab& slab,
-                                    bool with_obstacles) {
+                                    const std::array<bool, fields::kCount>& present) {
   Checksums s;
-  s.add_cells("bedrock_units", c.bedrock_units.data(), slab, c.nx);
-  s.add_cells("sand_units", c.sand_units.data(), slab, c.nx);
-  s.add_cells("airborne_units", c.airborne_units.data(), slab, c.nx);
-  s.add_cells("vegetation", c.vegetation.data(), slab, c.nx);
-  s.add_cells("resistance", c.resistance.data(), slab, c.nx);
-  if (with_obstacles) s.add_cells("obstacles", c.obstacles.data(), slab, c.nx);
+  for (int i = 0; i < fields::kCount; ++i) {
+    const auto id = static_cast<fields::Id>(i);
+    const fields::Info& f = fields::info(id);
+    if (!f.state || !present[id]) continue;
+    if (f.type == fields::Type::kUnits)
+      s.add_cells(f.checkpoint, c.units[id].data(), slab, c.nx);
+    else
+      s.add_cells(f.checkpoint, c.reals[id].data(), slab, c.nx);
+  }
   return s;
 }
 

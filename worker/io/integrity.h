@@ -28,6 +28,7 @@
 
 #include <mpi.h>
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -74,8 +75,9 @@ inline constexpr const char* kChecksumsAttr = "checksums";
 
 // The checksums of a checkpoint's arrays over `slab` (the whole grid for a
 // serial file; a rank's tile in a parallel one, to be allreduce()d).
-// `with_obstacles`: whether /obstacles is (to be) in the file.
-Checksums checkpoint_cell_checksums(const Checkpoint& c, const TileSlab& slab, bool with_obstacles);
+// present[id]: whether the state field's dataset is (to be) in the file.
+Checksums checkpoint_cell_checksums(const Checkpoint& c, const TileSlab& slab,
+                                    const std::array<bool, fields::kCount>& present);
 // Adds the checksums of its spec ("job_spec") and of its other attributes
 // ("attributes": format, format_version, step, nx, ny and the ledgers in
 // order); after allreduce() in a parallel file (they are the same on every

@@ -8,12 +8,15 @@
 
 #include <mpi.h>
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "core/fields.h"
 #include "io/io_error.h"
 
 namespace erg::io {
@@ -46,30 +49,39 @@ struct SnapshotMeta {
   std::string flux_law;
 };
 
+// The values of one snapshot layer at the owned cells, row-major: data[stride
+// * c + offset] for cell c (stride 2 and offset 0 or 1 pick a component of
+// interleaved (x, y) pairs). Null data: the layer is not written.
+struct LayerValues {
+  const float* data = nullptr;
+  int stride = 1, offset = 0;
+};
+// The layers of a snapshot, by registry field (core/fields.h): every field
+// with a snapshot position, in that unit (units fields in metres). Required
+// layers (not snapshot.optional) must be given.
 struct SnapshotFields {
-  const float* bedrock = nullptr;     // metres
-  const float* sand = nullptr;        // metres (on the ground)
-  const float* vegetation = nullptr;  // [0, 1]
-  const float* wind = nullptr;        // m/s, [ny][nx][2] interleaved (x, y)
-  const float* airborne = nullptr;    // metres of saltating sand; optional
-  const float* shadow = nullptr;      // [0, 1]; optional
-  const float* obstacles = nullptr;   // obstacle height, metres (0: none); optional
+  std::array<LayerValues, fields::kCount> layer{};
+  LayerValues& operator[](fields::Id id) { return layer[static_cast<std::size_t>(id)]; }
+  const LayerValues& operator[](fields::Id id) const { return layer[static_cast<std::size_t>(id)]; }
 };
 
-// Writes datasets /bedrock /sand /vegetation /wind_x /wind_y (float32
-// [1][ny][nx], dimensions time, y, x) and, when given, /airborne /shadow
-// /obstacles; deflate+shuffle, chunked; the coordinates /time /y /x and the
-// CF metadata (a netCDF-4 file, io/cf.h); the root attributes of
-// SnapshotMeta. Atomic (write then rename).
+// Writes one float32 dataset [1][ny][nx] (dimensions time, y, x) per layer
+// given, in the registry's snapshot order (bedrock, sand, vegetation, wind_x,
+// wind_y, then the optional ones); deflate+shuffle, chunked; the coordinates
+// /time /y /x and the CF metadata of the registry (a netCDF-4 file, io/cf.h);
+// the root attributes of SnapshotMeta. Atomic (write then rename).
 void write_snapshot(const std::string& path, const SnapshotMeta& meta, const SnapshotFields& f);
 
 // XDMF sidecar so ParaView opens the snapshot: the grid in the X-Y plane,
 // nodes at the cell centres (the CF x and y), node attributes height
-// (bedrock + sand, ready for Warp By Scalar), bedrock, sand, vegetation, wind
-// (x, y, 0) and the optional layers, and the simulated time in days.
-// `h5_name` is the snapshot file name relative to the XDMF file. Atomic.
+// (bedrock + sand, ready for Warp By Scalar), then every layer of `layers`
+// (registry fields, in snapshot order; wind_x and wind_y as one vector wind
+// (x, y, 0)), and the simulated time in days. `h5_name` is the snapshot file
+// name relative to the XDMF file. Atomic.
 void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const SnapshotMeta& meta,
-                bool has_airborne, bool has_shadow, bool has_obstacles = false);
+                const std::vector<fields::Id>& layers);
+// The layers of a snapshot written from `f` (those given), in file order.
+std::vector<fields::Id> snapshot_layer_ids(const SnapshotFields& f);
 // The sidecar of an existing snapshot file, next to it (".h5" -> ".xdmf"),
 // from the file's own attributes and datasets (erg fetch).
 void write_xdmf_for(const std::string& h5_path);
@@ -78,14 +90,19 @@ void write_xdmf_for(const std::string& h5_path);
 // whole after each snapshot, so a reader always sees a complete collection.
 void write_run_xdmf(const std::string& dir);
 
-// Reads a snapshot back (tests, tools); files written before the CF layout
-// ([ny][nx] layers, an interleaved /wind) are read too; `wind` is always
-// interleaved [ny][nx][2]. Missing optional datasets stay empty;
-// terrain_only reads bedrock, sand and vegetation alone (what a preview
-// needs: 12 of the 28 bytes per cell).
+// Reads a snapshot back (tests, tools): every layer of the registry that the
+// file has, in its unit; files written before the CF layout ([ny][nx]
+// layers, an interleaved /wind) are read too. Missing optional layers stay
+// empty; terrain_only reads bedrock, sand and vegetation alone (what a
+// preview needs: 12 of the 28 bytes per cell).
 struct Snapshot {
   SnapshotMeta meta;
-  std::vector<float> bedrock, sand, vegetation, wind, airborne, shadow, obstacles;
+  std::array<std::vector<float>, fields::kCount> layers;
+  std::vector<float> wind;  // wind_x and wind_y interleaved [ny][nx][2] (empty: terrain_only)
+  const std::vector<float>& operator[](fields::Id id) const {
+    return layers[static_cast<std::size_t>(id)];
+  }
+  std::vector<float>& operator[](fields::Id id) { return layers[static_cast<std::size_t>(id)]; }
 };
 Snapshot read_snapshot(const std::string& path, bool terrain_only = false);
 
@@ -103,15 +120,19 @@ void write_heightmap(const std::string& path, const HeightmapMeta& meta, const f
 
 // ---- checkpoints -----------------------------------------------------------
 // The exact integer state: enough to continue a run bitwise identically.
-struct Checkpoint {
+// Its arrays are the state fields of the registry (core/fields.h):
+// units[id] (int64 units) or reals[id], row-major [ny][nx]. An optional
+// field (checkpoint_optional) may be empty: not in the file (older files).
+struct Checkpoint : fields::ByField<std::vector> {
   std::int64_t step = 0;
   int nx = 0, ny = 0;
   std::string job_spec_json;
-  std::vector<std::int64_t> bedrock_units, sand_units, airborne_units;
-  std::vector<float> vegetation, resistance;
-  std::vector<float> obstacles;  // obstacle heights, metres (empty: none, older files)
   // Named 128-bit ledgers (e.g. sand added by events), as decimal strings.
   std::vector<std::pair<std::string, std::string>> ledger;
+  // The number of values of field id (units or reals, by its type).
+  std::size_t size(fields::Id id) const {
+    return fields::info(id).type == fields::Type::kUnits ? units[id].size() : reals[id].size();
+  }
 };
 void write_checkpoint(const std::string& path, const Checkpoint& c);  // atomic
 Checkpoint read_checkpoint(const std::string& path);

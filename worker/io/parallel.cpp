@@ -33,6 +33,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstdint>
 #include <cstdio>
@@ -466,12 +467,7 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
   co.run([&] {
     detail::check_grid(path, meta.nx, meta.ny);
     check_chunk(path, chunk_nx, chunk_ny, meta.nx, meta.ny);
-    if (!slab_empty(slab) && (!f.bedrock || !f.sand || !f.vegetation || !f.wind)) {
-      fail(path,
-           "snapshot needs bedrock, sand, vegetation and wind fields (got a null pointer for "
-           "tile " +
-               slab_text(slab) + ")");
-    }
+    if (!slab_empty(slab)) detail::check_required_layers(path, f, " on tile " + slab_text(slab));
   });
   co.agree();
   // ... then what the ranks must agree on.
@@ -495,21 +491,23 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
     same.check(co, path);
   }
   check_tiling(co, path, slab, meta.nx, meta.ny);
-  // An optional layer is written when every rank that owns cells has it.
-  int have[3] = {f.airborne || slab_empty(slab) ? 1 : 0, f.shadow || slab_empty(slab) ? 1 : 0,
-                 f.obstacles || slab_empty(slab) ? 1 : 0};
-  MPI_Allreduce(MPI_IN_PLACE, have, 3, MPI_INT, MPI_LAND, comm);
-  const bool has_airborne = have[0] != 0, has_shadow = have[1] != 0, has_obstacles = have[2] != 0;
+  // A layer is written when every rank that owns cells has it.
+  std::array<int, fields::kCount> have{};
+  for (const fields::Id id : fields::snapshot_order())
+    have[id] = f[id].data || slab_empty(slab) ? 1 : 0;
+  MPI_Allreduce(MPI_IN_PLACE, have.data(), fields::kCount, MPI_INT, MPI_LAND, comm);
+  std::vector<fields::Id> ids;
+  for (const fields::Id id : fields::snapshot_order())
+    if (have[id]) ids.push_back(id);
 
   SizeBound bound;
-  for (std::size_t k = 0;
-       k < detail::snapshot_layers(f, has_airborne, has_shadow, has_obstacles).size(); ++k) {
+  for (std::size_t k = 0; k < ids.size(); ++k) {
     bound.add_dataset(meta.nx, meta.ny, 1, sizeof(float), chunk_nx, chunk_ny);
   }
   // The CF coordinates and metadata (cf.h): a few KiB per layer at most.
   bound.bytes +=
       8 * (static_cast<std::uint64_t>(meta.nx) + static_cast<std::uint64_t>(meta.ny) + 1) +
-      (std::uint64_t{4} << 10) * 12;
+      (std::uint64_t{4} << 10) * std::max<std::uint64_t>(12, ids.size() + 4);
   for (const std::string* s :
        {&meta.job_spec_json, &meta.erg_version, &meta.sand_units_total, &meta.bedrock_units_total,
         &meta.airborne_units_total, &meta.backend}) {
@@ -524,8 +522,7 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
     TileWriter w{co, file, dxpl.get(), path, slab, meta.nx, meta.ny, chunk_nx, chunk_ny};
     // The optional layers as agreed above (a rank without cells may pass null).
     std::vector<std::string> names;
-    for (const detail::SnapshotLayer& l :
-         detail::snapshot_layers(f, has_airborne, has_shadow, has_obstacles)) {
+    for (const detail::SnapshotLayer& l : detail::snapshot_layers(f, ids)) {
       w.write(l.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, l.data, detail::kSnapshotDeflate, &l);
       names.emplace_back(l.name);
     }
@@ -546,21 +543,9 @@ void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Che
                      " (nx and ny must be positive)");
     }
     check_chunk(path, chunk_nx, chunk_ny, c.nx, c.ny);
-    const std::size_t n = slab_cells(slab);
-    auto check_size = [&](const char* name, std::size_t size) {
-      if (size != n) {
-        fail(path, std::string("checkpoint field '") + name + "' has " + std::to_string(size) +
-                       " values, expected the tile's nx * ny = " + std::to_string(n) + " (tile " +
-                       slab_text(slab) + ")");
-      }
-    };
-    if (slab.nx >= 0 && slab.ny >= 0) {
-      check_size("bedrock_units", c.bedrock_units.size());
-      check_size("sand_units", c.sand_units.size());
-      check_size("airborne_units", c.airborne_units.size());
-      check_size("vegetation", c.vegetation.size());
-      check_size("resistance", c.resistance.size());
-    }
+    if (slab.nx >= 0 && slab.ny >= 0)
+      detail::check_checkpoint_sizes(c, slab_cells(slab), path, "the tile's nx * ny",
+                                     " (tile " + slab_text(slab) + ")");
     detail::check_checkpoint_ledger(c, path);
   });
   co.agree();
@@ -585,14 +570,24 @@ void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Che
   Hid fcpl;
   co.run([&] { fcpl = detail::checkpoint_fcpl(path); });
   co.agree();
-  // Obstacles are written when every rank that owns cells has them.
-  int have_obstacles =
-      slab_empty(slab) || (!c.obstacles.empty() && c.obstacles.size() == slab_cells(slab)) ? 1 : 0;
-  MPI_Allreduce(MPI_IN_PLACE, &have_obstacles, 1, MPI_INT, MPI_LAND, comm);
-  const bool has_obstacles = have_obstacles != 0;
+  // An optional field is written when every rank that owns cells has it.
+  std::array<int, fields::kCount> have{};
+  for (int i = 0; i < fields::kCount; ++i) {
+    const auto id = static_cast<fields::Id>(i);
+    have[id] = fields::is_state(id) && (!fields::info(id).checkpoint_optional || slab_empty(slab) ||
+                                        c.size(id) == slab_cells(slab))
+                   ? 1
+                   : 0;
+  }
+  MPI_Allreduce(MPI_IN_PLACE, have.data(), fields::kCount, MPI_INT, MPI_LAND, comm);
+  std::array<bool, fields::kCount> present{};
+  for (int i = 0; i < fields::kCount; ++i) present[static_cast<std::size_t>(i)] = have[i] != 0;
   SizeBound bound;
-  for (std::size_t element : {8, 8, 8, 4, 4, 4}) {
-    bound.add_dataset(c.nx, c.ny, 1, element, chunk_nx, chunk_ny);
+  for (int i = 0; i < fields::kCount; ++i) {
+    const auto id = static_cast<fields::Id>(i);
+    if (present[id])
+      bound.add_dataset(c.nx, c.ny, 1, fields::info(id).type == fields::Type::kUnits ? 8 : 4,
+                        chunk_nx, chunk_ny);
   }
   bound.add_text(c.job_spec_json);
   for (const auto& [name, value] : c.ledger) bound.add_text(name + value);
@@ -603,20 +598,18 @@ void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Che
     co.run([&] { dxpl = collective_dxpl(path); });
     co.agree();
     TileWriter w{co, file, dxpl.get(), path, slab, c.nx, c.ny, chunk_nx, chunk_ny};
-    auto ints = [&](const char* name, const std::vector<std::int64_t>& v) {
-      w.write(name, H5T_STD_I64LE, H5T_NATIVE_INT64, v.data(), detail::kCheckpointDeflate);
-    };
-    auto floats = [&](const char* name, const std::vector<float>& v) {
-      w.write(name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, v.data(), detail::kCheckpointDeflate);
-    };
-    ints("bedrock_units", c.bedrock_units);
-    ints("sand_units", c.sand_units);
-    ints("airborne_units", c.airborne_units);
-    floats("vegetation", c.vegetation);
-    floats("resistance", c.resistance);
-    if (has_obstacles) floats("obstacles", c.obstacles);
+    for (int i = 0; i < fields::kCount; ++i) {
+      const auto id = static_cast<fields::Id>(i);
+      if (!present[id]) continue;
+      if (fields::info(id).type == fields::Type::kUnits)
+        w.write(fields::info(id).checkpoint, H5T_STD_I64LE, H5T_NATIVE_INT64, c.units[id].data(),
+                detail::kCheckpointDeflate);
+      else
+        w.write(fields::info(id).checkpoint, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, c.reals[id].data(),
+                detail::kCheckpointDeflate);
+    }
     // Each rank sums its tile; the sums of all ranks are the file's (integrity.h).
-    detail::Checksums sums = detail::checkpoint_cell_checksums(c, slab, has_obstacles);
+    detail::Checksums sums = detail::checkpoint_cell_checksums(c, slab, present);
     sums.allreduce(co.comm());
     sums = detail::checkpoint_checksums_done(std::move(sums), c);
     co.run([&] {
@@ -676,13 +669,8 @@ Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, cons
     });
     co.agree();
   };
-  read("bedrock_units", H5T_NATIVE_INT64, c.bedrock_units);
-  read("sand_units", H5T_NATIVE_INT64, c.sand_units);
-  read("airborne_units", H5T_NATIVE_INT64, c.airborne_units);
-  read("vegetation", H5T_NATIVE_FLOAT, c.vegetation);
-  read("resistance", H5T_NATIVE_FLOAT, c.resistance);
   // (The same file on every rank: every rank gets the same answer.)
-  if (detail::link_exists(fid, "obstacles")) read("obstacles", H5T_NATIVE_FLOAT, c.obstacles);
+  const std::array<bool, fields::kCount> present = detail::read_checkpoint_fields(fid, c, read);
 
   co.run([&] { detail::read_checkpoint_ledger(fid, path, c); });
   co.agree();
@@ -691,8 +679,7 @@ Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, cons
   // verified; a partial read verifies the spec and attributes only.
   {
     const TileSlab mine = slab_empty(slab) ? TileSlab{} : slab;
-    detail::Checksums sums =
-        detail::checkpoint_cell_checksums(c, mine, detail::link_exists(fid, "obstacles"));
+    detail::Checksums sums = detail::checkpoint_cell_checksums(c, mine, present);
     sums.allreduce(co.comm());
     unsigned long long cells = slab_empty(slab) ? 0 : slab_cells(slab);
     MPI_Allreduce(MPI_IN_PLACE, &cells, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, co.comm());

@@ -25,18 +25,32 @@ void detail::check_grid(const std::string& path, int nx, int ny) {
   }
 }
 
+std::vector<fields::Id> snapshot_layer_ids(const SnapshotFields& f) {
+  std::vector<fields::Id> ids;
+  for (const fields::Id id : fields::snapshot_order())
+    if (f[id].data) ids.push_back(id);
+  return ids;
+}
+
 std::vector<detail::SnapshotLayer> detail::snapshot_layers(const SnapshotFields& f,
-                                                           bool with_airborne, bool with_shadow,
-                                                           bool with_obstacles) {
-  std::vector<SnapshotLayer> layers = {{"bedrock", f.bedrock},
-                                       {"sand", f.sand},
-                                       {"vegetation", f.vegetation},
-                                       {"wind_x", f.wind, 2, 0},
-                                       {"wind_y", f.wind, 2, 1}};
-  if (with_airborne) layers.push_back({"airborne", f.airborne});
-  if (with_shadow) layers.push_back({"shadow", f.shadow});
-  if (with_obstacles) layers.push_back({"obstacles", f.obstacles});
+                                                           const std::vector<fields::Id>& ids) {
+  std::vector<SnapshotLayer> layers;
+  for (const fields::Id id : ids)
+    layers.push_back({fields::info(id).name, f[id].data, f[id].stride, f[id].offset});
   return layers;
+}
+
+void detail::check_required_layers(const std::string& path, const SnapshotFields& f,
+                                   const std::string& where) {
+  std::string required, missing;
+  for (const fields::Id id : fields::snapshot_order()) {
+    if (fields::info(id).snapshot.optional) continue;
+    required += std::string(required.empty() ? "" : ", ") + fields::info(id).name;
+    if (!f[id].data) missing += std::string(missing.empty() ? "" : ", ") + fields::info(id).name;
+  }
+  if (!missing.empty())
+    fail(path, "snapshot needs the layers " + required + " (got a null pointer for " + missing +
+                   where + ")");
 }
 
 detail::Hid detail::layer_memory_space(const SnapshotLayer& l, std::size_t cells,
@@ -152,9 +166,7 @@ int read_extent(hid_t file, const char* name, const std::string& path) {
 void write_snapshot(const std::string& path, const SnapshotMeta& meta, const SnapshotFields& f) {
   // Argument errors first, before anything touches the disk.
   check_grid(path, meta.nx, meta.ny);
-  if (!f.bedrock || !f.sand || !f.vegetation || !f.wind) {
-    fail(path, "snapshot needs bedrock, sand, vegetation and wind fields (got a null pointer)");
-  }
+  detail::check_required_layers(path, f);
 
   AtomicFile out(path);
   std::vector<char> image;
@@ -164,8 +176,7 @@ void write_snapshot(const std::string& path, const SnapshotMeta& meta, const Sna
     const hid_t fid = file.get();
     const hsize_t ny = static_cast<hsize_t>(meta.ny), nx = static_cast<hsize_t>(meta.nx);
     std::vector<std::string> names;
-    for (const detail::SnapshotLayer& l :
-         detail::snapshot_layers(f, f.airborne, f.shadow, f.obstacles)) {
+    for (const detail::SnapshotLayer& l : detail::snapshot_layers(f, snapshot_layer_ids(f))) {
       write_layer(fid, l, ny, nx, path);
       names.emplace_back(l.name);
     }
@@ -201,25 +212,34 @@ Snapshot read_snapshot(const std::string& path, bool terrain_only) {
   if (H5Aexists(fid, "time_s") > 0) m.time_s = detail::read_attr_f64(fid, "time_s", path);
 
   const hsize_t ny = static_cast<hsize_t>(m.ny), nx = static_cast<hsize_t>(m.nx);
-  auto layer = [&](const char* name) { return read_layer(fid, name, ny, nx, path); };
-  s.bedrock = layer("bedrock");
-  s.sand = layer("sand");
-  s.vegetation = layer("vegetation");
+  auto layer = [&](fields::Id id) { s[id] = read_layer(fid, fields::info(id).name, ny, nx, path); };
+  // The terrain (what a preview needs), then the rest.
+  for (const fields::Id id : {fields::kBedrock, fields::kSand, fields::kVegetation}) layer(id);
   if (terrain_only) return s;
-  if (detail::link_exists(fid, "wind_x") || !detail::link_exists(fid, "wind")) {
-    const std::vector<float> wx = layer("wind_x"), wy = layer("wind_y");
+  if (!detail::link_exists(fid, "wind_x") && detail::link_exists(fid, "wind")) {
+    // Files written before the CF layout: one interleaved [ny][nx][2] /wind.
+    s.wind = detail::read_dataset<float>(fid, "wind", H5T_NATIVE_FLOAT, {ny, nx, 2}, path);
+    s[fields::kWindX].resize(s.wind.size() / 2);
+    s[fields::kWindY].resize(s.wind.size() / 2);
+    for (std::size_t c = 0; c < s.wind.size() / 2; ++c) {
+      s[fields::kWindX][c] = s.wind[2 * c];
+      s[fields::kWindY][c] = s.wind[2 * c + 1];
+    }
+  }
+  for (const fields::Id id : fields::snapshot_order()) {
+    if (!s[id].empty()) continue;  // read above
+    if (fields::info(id).snapshot.optional && !detail::link_exists(fid, fields::info(id).name))
+      continue;
+    layer(id);
+  }
+  if (s.wind.empty()) {
+    const std::vector<float>&wx = s[fields::kWindX], &wy = s[fields::kWindY];
     s.wind.resize(2 * wx.size());
     for (std::size_t c = 0; c < wx.size(); ++c) {
       s.wind[2 * c] = wx[c];
       s.wind[2 * c + 1] = wy[c];
     }
-  } else {
-    // Files written before the CF layout: one interleaved [ny][nx][2] /wind.
-    s.wind = detail::read_dataset<float>(fid, "wind", H5T_NATIVE_FLOAT, {ny, nx, 2}, path);
   }
-  if (detail::link_exists(fid, "airborne")) s.airborne = layer("airborne");
-  if (detail::link_exists(fid, "shadow")) s.shadow = layer("shadow");
-  if (detail::link_exists(fid, "obstacles")) s.obstacles = layer("obstacles");
   return s;
 }
 

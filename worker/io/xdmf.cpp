@@ -20,6 +20,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/fields.h"
 #include "io/atomic_file.h"
 #include "io/cf.h"
 #include "io/formats.h"
@@ -78,7 +79,7 @@ constexpr const char* kHdfItem = "Format=\"HDF\">";
 
 // One snapshot's <Grid>, its HDF5 paths relative to the XDMF file that holds it.
 std::string grid_text(const std::string& name, const std::string& h5_ref, const SnapshotMeta& meta,
-                      bool has_airborne, bool has_shadow, bool has_obstacles) {
+                      const std::vector<fields::Id>& layers) {
   std::ostringstream os = xml_stream();
   const std::string dims = "1 " + std::to_string(meta.ny) + " " + std::to_string(meta.nx);
   const std::string h5 = xml_escape(h5_ref);
@@ -113,19 +114,22 @@ std::string grid_text(const std::string& name, const std::string& h5_ref, const 
   data_item("sand", "          ");
   os << "        </DataItem>\n"
      << "      </Attribute>\n";
-  scalar("bedrock");
-  scalar("sand");
-  scalar("vegetation");
-  os << "      <Attribute Name=\"wind\" AttributeType=\"Vector\" Center=\"Node\">\n"
-     << "        <DataItem ItemType=\"Function\" Function=\"JOIN($0, $1, 0 * $0)\" Dimensions=\""
-     << dims << " 3\">\n";
-  data_item("wind_x", "          ");
-  data_item("wind_y", "          ");
-  os << "        </DataItem>\n"
-     << "      </Attribute>\n";
-  if (has_airborne) scalar("airborne");
-  if (has_shadow) scalar("shadow");
-  if (has_obstacles) scalar("obstacles");
+  // The registry's layers in file order; the wind's components as one vector.
+  for (const fields::Id id : layers) {
+    if (id == fields::kWindY) continue;
+    if (id != fields::kWindX) {
+      scalar(fields::info(id).name);
+      continue;
+    }
+    os << "      <Attribute Name=\"wind\" AttributeType=\"Vector\" Center=\"Node\">\n"
+       << "        <DataItem ItemType=\"Function\" Function=\"JOIN($0, $1, 0 * $0)\" "
+          "Dimensions=\""
+       << dims << " 3\">\n";
+    data_item(fields::info(fields::kWindX).name, "          ");
+    data_item(fields::info(fields::kWindY).name, "          ");
+    os << "        </DataItem>\n"
+       << "      </Attribute>\n";
+  }
   os << "    </Grid>\n";
   return os.str();
 }
@@ -160,17 +164,16 @@ long long step_of(const std::string& file) {
 }  // namespace
 
 void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const SnapshotMeta& meta,
-                bool has_airborne, bool has_shadow, bool has_obstacles) {
+                const std::vector<fields::Id>& layers) {
   detail::check_grid(xdmf_path, meta.nx, meta.ny);
   if (h5_name.empty()) fail(xdmf_path, "XDMF needs the name of its HDF5 file");
   std::string name = fs::path(h5_name).stem().string();
-  write_text(xdmf_path,
-             document(grid_text(name, h5_name, meta, has_airborne, has_shadow, has_obstacles)));
+  write_text(xdmf_path, document(grid_text(name, h5_name, meta, layers)));
 }
 
 void write_xdmf_for(const std::string& h5_path) {
   SnapshotMeta meta;
-  bool has[3] = {false, false, false};
+  std::vector<fields::Id> layers;
   {
     detail::Hdf5Guard guard;
     detail::Hid file = detail::open_hdf5_readonly(h5_path, "snapshot");
@@ -180,15 +183,14 @@ void write_xdmf_for(const std::string& h5_path) {
     meta.step = detail::read_attr_i64(fid, "step", h5_path);
     meta.time_days = detail::read_attr_f64(fid, "time_days", h5_path);
     meta.cell_size_m = detail::read_attr_f64(fid, "cell_size_m", h5_path);
-    const char* optional[3] = {"airborne", "shadow", "obstacles"};
-    for (int k = 0; k < 3; ++k) has[k] = detail::link_exists(fid, optional[k]);
     if (!detail::link_exists(fid, "wind_x")) {
       fail(h5_path, "snapshot has no /wind_x: written by an erg older than the CF layout");
     }
+    for (const fields::Id id : fields::snapshot_order())
+      if (detail::link_exists(fid, fields::info(id).name)) layers.push_back(id);
   }
   const fs::path p(h5_path);
-  write_xdmf(fs::path(p).replace_extension(".xdmf").string(), p.filename().string(), meta, has[0],
-             has[1], has[2]);
+  write_xdmf(fs::path(p).replace_extension(".xdmf").string(), p.filename().string(), meta, layers);
 }
 
 void write_run_xdmf(const std::string& dir) {

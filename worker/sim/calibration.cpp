@@ -68,9 +68,9 @@ double crossing(const io::Checkpoint& steady, int axis, bool downwind_positive, 
     for (int x = 0; x < n; ++x)
       if (in_half(x, y)) {
         const size_t i = static_cast<size_t>(y) * n + x;
-        c.bedrock_units[i] += c.sand_units[i];  // the surface stays level
-        c.sand_units[i] = 0;
-        c.airborne_units[i] = 0;
+        c.units[fields::kBedrock][i] += c.units[fields::kSand][i];  // the surface stays level
+        c.units[fields::kSand][i] = 0;
+        c.units[fields::kAirborne][i] = 0;
       }
   RunOptions opt;
   opt.backend = BackendKind::kCpu;
@@ -83,7 +83,7 @@ double crossing(const io::Checkpoint& steady, int axis, bool downwind_positive, 
     for (int x = 0; x < n; ++x)
       if (in_half(x, y)) {
         const size_t i = static_cast<size_t>(y) * n + x;
-        units += after.sand_units[i] + after.airborne_units[i];
+        units += after.units[fields::kSand][i] + after.units[fields::kAirborne][i];
       }
   // Volume per metre of width: sum(h) l^2 / (n l).
   return static_cast<double>(units) * kUnitM * cell_m / n;

@@ -74,20 +74,15 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
   Simulation::Output o = sim.output();
   io::SnapshotMeta meta = sim.snapshot_meta();  // collective: exact totals
   io::SnapshotFields f;
-  f.bedrock = o.bedrock.data();
-  f.sand = o.sand.data();
-  f.vegetation = o.vegetation.data();
-  f.wind = o.wind.data();
-  f.airborne = o.airborne.data();
-  f.shadow = o.shadow.data();
-  f.obstacles = o.obstacles.data();
+  for (const fields::Id id : fields::snapshot_order()) f[id].data = o[id].data();
   const std::string h5 = dir + "/snapshots/" + name + ".h5";
   if (ctx.tiled())
     io::write_snapshot_parallel(ctx.cart, h5, meta, f, ctx.slab, ctx.chunk_x, ctx.chunk_y);
   else
     io::write_snapshot(h5, meta, f);
   if (!ctx.root()) return;
-  io::write_xdmf(dir + "/snapshots/" + name + ".xdmf", name + ".h5", meta, true, true, true);
+  io::write_xdmf(dir + "/snapshots/" + name + ".xdmf", name + ".h5", meta,
+                 io::snapshot_layer_ids(f));
   io::write_run_xdmf(dir);
   std::string png;
   if (previews) {
@@ -96,11 +91,11 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
       // The coordinator has only its tile: the preview is made from the file
       // (12 bytes per cell of the whole domain, on rank 0, for a moment).
       const io::Snapshot whole = io::read_snapshot(h5, /*terrain_only=*/true);
-      io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, whole.bedrock.data(),
-                            whole.sand.data(), whole.vegetation.data());
+      io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, whole[fields::kBedrock].data(),
+                            whole[fields::kSand].data(), whole[fields::kVegetation].data());
     } else {
-      io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, o.bedrock.data(),
-                            o.sand.data(), o.vegetation.data());
+      io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, o[fields::kBedrock].data(),
+                            o[fields::kSand].data(), o[fields::kVegetation].data());
     }
   }
   erg::v1::WorkerEvent e;

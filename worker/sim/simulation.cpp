@@ -35,25 +35,28 @@ TileState initial_state(const erg::v1::JobSpec& spec, const Model& model,
   using init::LayerKind;
   const auto& L = spec.layers();
   set_owned_cells(
-      s.bedrock, init::generate_layer(L.bedrock(), LayerKind::kBedrock, spec, model.tile, base_dir),
+      s.units[fields::kBedrock],
+      init::generate_layer(L.bedrock(), LayerKind::kBedrock, spec, model.tile, base_dir),
       [](double m) { return m_to_units(m); });
-  set_owned_cells(s.sand,
+  set_owned_cells(s.units[fields::kSand],
                   init::generate_layer(L.sand(), LayerKind::kSand, spec, model.tile, base_dir),
                   [](double m) { return m_to_units(std::max(0.0, m)); });
   set_owned_cells(
-      s.vegetation,
+      s.reals[fields::kVegetation],
       init::generate_layer(L.vegetation(), LayerKind::kVegetation, spec, model.tile, base_dir),
       [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
   set_owned_cells(
-      s.resistance,
+      s.reals[fields::kResistance],
       init::generate_layer(L.resistance(), LayerKind::kResistance, spec, model.tile, base_dir),
       [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
-  set_owned_cells(s.obstacles, init::generate_obstacles(L.obstacles(), spec, model.tile, base_dir),
+  set_owned_cells(s.reals[fields::kObstacles],
+                  init::generate_obstacles(L.obstacles(), spec, model.tile, base_dir),
                   [](double o) { return static_cast<float>(o); });
   // Obstacles hold no sand [BR04 4]: initial sand inside them is dropped.
   for (int y = 0; y < model.tile.ny; ++y)
     for (int x = 0; x < model.tile.nx; ++x)
-      if (obstacles::is_obstacle(s.obstacles(x, y))) s.sand(x, y) = 0;
+      if (obstacles::is_obstacle(s.reals[fields::kObstacles](x, y)))
+        s.units[fields::kSand](x, y) = 0;
   return s;
 }
 
@@ -96,13 +99,15 @@ Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt, const 
   }
   TileState s;
   s.allocate(model_.tile);
-  set_owned_cells(s.bedrock, ckpt.bedrock_units);
-  set_owned_cells(s.sand, ckpt.sand_units);
-  set_owned_cells(s.airborne, ckpt.airborne_units);
-  set_owned_cells(s.vegetation, ckpt.vegetation);
-  set_owned_cells(s.resistance, ckpt.resistance);
-  // (Checkpoints written before obstacles existed have none.)
-  if (!ckpt.obstacles.empty()) set_owned_cells(s.obstacles, ckpt.obstacles);
+  // Every state field of the registry; one that an older checkpoint lacks
+  // keeps its default (TileState::allocate).
+  fields::each([&](fields::Id id, const fields::Info& f) {
+    if (!f.state || ckpt.size(id) == 0) return;
+    if (f.type == fields::Type::kUnits)
+      set_owned_cells(s.units[id], ckpt.units[id]);
+    else
+      set_owned_cells(s.reals[id], ckpt.reals[id]);
+  });
   init_backend(opt, s);
 }
 
@@ -208,28 +213,22 @@ io::Checkpoint Simulation::checkpoint() {
   c.nx = g.gnx;
   c.ny = g.gny;
   c.job_spec_json = spec_json_;
-  c.bedrock_units = owned_cells(s.bedrock);
-  c.sand_units = owned_cells(s.sand);
-  c.airborne_units = owned_cells(s.airborne);
-  c.vegetation = owned_cells(s.vegetation);
-  c.resistance = owned_cells(s.resistance);
-  c.obstacles = owned_cells(s.obstacles);
+  fields::each([&](fields::Id id, const fields::Info& f) {
+    if (!f.state) return;
+    if (f.type == fields::Type::kUnits)
+      c.units[id] = owned_cells(s.units[id]);
+    else
+      c.reals[id] = owned_cells(s.reals[id]);
+  });
   c.ledger = {{"sand_added_by_events", to_decimal(sand_added_)},
               {"bedrock_added_by_events", to_decimal(bedrock_added_)}};
   return c;
 }
 
 Simulation::Output Simulation::output() {
-  const TileState s = state();
   Output o;
-  const auto metres = [](units_t u) { return static_cast<float>(units_to_m_d(u)); };
-  o.bedrock = owned_cells<float>(s.bedrock, metres);
-  o.sand = owned_cells<float>(s.sand, metres);
-  o.airborne = owned_cells<float>(s.airborne, metres);
-  o.vegetation = owned_cells(s.vegetation);
-  o.obstacles = owned_cells(s.obstacles);
-  backend_->download_wind(o.wind);
-  backend_->download_shadow(o.shadow);
+  for (const fields::Id id : fields::snapshot_order())
+    backend_->download_owned(id, o.layers[static_cast<std::size_t>(id)]);
   return o;
 }
 

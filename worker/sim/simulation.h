@@ -89,9 +89,13 @@ class Simulation {
   // The tile's exact state; nx, ny are the global domain size.
   io::Checkpoint checkpoint();
 
-  // Float fields of the tile's owned cells, row-major, for snapshots.
+  // The snapshot layers of the registry (core/fields.h) at the tile's owned
+  // cells, row-major, in their units (empty for fields not in snapshots).
   struct Output {
-    std::vector<float> bedrock, sand, vegetation, wind, airborne, shadow, obstacles;
+    std::array<std::vector<float>, fields::kCount> layers;
+    const std::vector<float>& operator[](fields::Id id) const {
+      return layers[static_cast<std::size_t>(id)];
+    }
   };
   Output output();
   io::SnapshotMeta snapshot_meta();

@@ -1,31 +1,30 @@
 // The exact state of one tile: what a checkpoint holds. Everything else
-// (heights, wind, shadow, buffers) is derived from it each step.
+// (heights, wind, shadow, buffers) is derived from it each step. Its fields
+// are the state fields of the registry (core/fields.h).
 #pragma once
 
 #include <cstdint>
 
 #include "core/field.h"
+#include "core/fields.h"
 #include "core/units.h"
 
 namespace erg {
 
-struct TileState {
+// units[id] for integer fields, reals[id] for float ones; only the state
+// fields are allocated.
+struct TileState : fields::ByField<Field> {
   TileGeom geom;
-  Field<units_t> bedrock;   // b, units
-  Field<units_t> sand;      // s >= 0, units, on the ground
-  Field<units_t> airborne;  // saltating sand that bounced, units [N24 slab buffer]
-  Field<float> vegetation;  // v in [0, 1]
-  Field<float> resistance;  // r in [0, 1]
-  Field<float> obstacles;   // obstacle height o >= 0, metres; o > 0: an obstacle [BR04]
 
   void allocate(const TileGeom& g) {
     geom = g;
-    bedrock.reset(g);
-    sand.reset(g);
-    airborne.reset(g);
-    vegetation.reset(g);
-    resistance.reset(g);
-    obstacles.reset(g);
+    fields::each([&](fields::Id id, const fields::Info& f) {
+      if (!f.state) return;
+      if (f.type == fields::Type::kUnits)
+        units[id].reset(g, static_cast<units_t>(f.initial));
+      else
+        reals[id].reset(g, f.initial);
+    });
   }
 };
 

@@ -404,7 +404,7 @@ class AvalancheSweep {
 int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
   if (settled) *settled = false;
   if (iterations <= 0) return 0;
-  const AvalancheLayers layers{bedrock_, sand_, obstacles_, tan_l_, h_a_, frac_};
+  const AvalancheLayers layers{f_.bedrock, f_.sand, f_.obstacles, f_.tan_l, h_a_, frac_};
   return AvalancheSweep(m_, g_, threads_, ex_, layers, bedrock, iterations).run(settled);
 }
 

@@ -15,21 +15,13 @@ CpuBackend::CpuBackend(const Model& model, int threads, dist::Exchange& ex)
       threads_(threads > 0 ? threads : omp_get_max_threads()),
       ex_(ex),
       smoother_(model.coarse) {
-  bedrock_.reset(g_);
-  sand_.reset(g_);
-  airborne_.reset(g_);
-  vegetation_.reset(g_);
-  resistance_.reset(g_);
-  obstacles_.reset(g_);
-  height_m_.reset(g_);
-  wind_x_.reset(g_);
-  wind_y_.reset(g_);
-  shadow_.reset(g_);
-  echo_.reset(g_);
-  landed_.reset(g_);
-  reptation_.reset(g_);
+  fields::each([&](fields::Id id, const fields::Info& f) {
+    if (f.type == fields::Type::kUnits)
+      units(id).reset(g_, static_cast<units_t>(f.initial));
+    else
+      reals(id).reset(g_, f.initial);
+  });
   height_units_.reset(g_);
-  tan_l_.reset(g_);
   sand_next_.reset(g_);
   h_a_.reset(g_);
   frac_.reset(g_);
@@ -37,61 +29,55 @@ CpuBackend::CpuBackend(const Model& model, int threads, dist::Exchange& ex)
 }
 
 void CpuBackend::upload(const TileState& s) {
-  bedrock_ = s.bedrock;
-  sand_ = s.sand;
-  airborne_ = s.airborne;
-  vegetation_ = s.vegetation;
-  resistance_ = s.resistance;
-  obstacles_ = s.obstacles;
+  fields::each([&](fields::Id id, const fields::Info& f) {
+    if (!f.state) return;
+    if (f.type == fields::Type::kUnits)
+      units(id) = s.units[id];
+    else
+      reals(id) = s.reals[id];
+  });
   bedrock_changed_ = true;
   update_repose();
   obstacles_changed();
 }
 
 void CpuBackend::obstacles_changed() {
-  ex_.fill(obstacles_, g_.halo);
-  const float* o = obstacles_.data();
+  ex_.fill(f_.obstacles, g_.halo);
+  const float* o = f_.obstacles.data();
   bool any = false;
-  for (size_t i = 0; i < obstacles_.size(); ++i) any |= obstacles::is_obstacle(o[i]);
+  for (size_t i = 0; i < f_.obstacles.size(); ++i) any |= obstacles::is_obstacle(o[i]);
   any_obstacles_ = any;
 }
 
 void CpuBackend::download(TileState& s) {
   s.geom = g_;
-  s.bedrock = bedrock_;
-  s.sand = sand_;
-  s.airborne = airborne_;
-  s.vegetation = vegetation_;
-  s.resistance = resistance_;
-  s.obstacles = obstacles_;
+  fields::each([&](fields::Id id, const fields::Info& f) {
+    if (!f.state) return;
+    if (f.type == fields::Type::kUnits)
+      s.units[id] = units(id);
+    else
+      s.reals[id] = reals(id);
+  });
 }
 
-void CpuBackend::download_wind(std::vector<float>& wind_xy) {
-  wind_xy.resize(static_cast<size_t>(g_.nx) * g_.ny * 2);
-  for (int y = 0; y < g_.ny; ++y)
-    for (int x = 0; x < g_.nx; ++x) {
-      const size_t i = (static_cast<size_t>(y) * g_.nx + x) * 2;
-      wind_xy[i] = wind_x_(x, y);
-      wind_xy[i + 1] = wind_y_(x, y);
-    }
-}
-
-void CpuBackend::download_shadow(std::vector<float>& shadow) {
-  shadow.resize(static_cast<size_t>(g_.nx) * g_.ny);
-  for (int y = 0; y < g_.ny; ++y)
-    std::memcpy(&shadow[static_cast<size_t>(y) * g_.nx], shadow_.row(y), sizeof(float) * g_.nx);
+void CpuBackend::download_owned(fields::Id id, std::vector<float>& out) {
+  if (fields::info(id).type == fields::Type::kUnits)
+    out = owned_cells<float>(units(id),
+                             [](units_t u) { return static_cast<float>(units_to_m_d(u)); });
+  else
+    out = owned_cells(reals(id));
 }
 
 void CpuBackend::update_repose() {
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y) {
-    const float* v = vegetation_.row(y);
-    float* t = tan_l_.row(y);
+    const float* v = f_.vegetation.row(y);
+    float* t = f_.tan_l.row(y);
     for (int x = 0; x < g_.nx; ++x)
       t[x] = vegetation::repose_tan(v[x], m_.tan_l_sand, m_.tan_l_vegetated);
   }
   // Avalanching reads the tangents inside its whole halo.
-  ex_.fill(tan_l_, m_.halo_avalanche() + 1);
+  ex_.fill(f_.tan_l, m_.halo_avalanche() + 1);
 }
 
 namespace {
@@ -108,8 +94,8 @@ total_t CpuBackend::apply_sand_brush(const events::Brush& b) {
   total_t change = 0;
 #pragma omp parallel for num_threads(threads_) schedule(static) reduction(+ : change)
   for (int y = 0; y < g_.ny; ++y) {
-    units_t* s = sand_.row(y);
-    const float* o = obstacles_.row(y);
+    units_t* s = f_.sand.row(y);
+    const float* o = f_.obstacles.row(y);
     for (int x = 0; x < g_.nx; ++x) {
       units_t d = events::brush_units(b, centre_x(g_, x), centre_y(g_, y));
       if (d < -s[x]) d = -s[x];                 // never below bare ground
@@ -127,7 +113,7 @@ total_t CpuBackend::apply_bedrock_brush(const events::Brush& b) {
   total_t change = 0;
 #pragma omp parallel for num_threads(threads_) schedule(static) reduction(+ : change)
   for (int y = 0; y < g_.ny; ++y) {
-    units_t* r = bedrock_.row(y);
+    units_t* r = f_.bedrock.row(y);
     for (int x = 0; x < g_.nx; ++x) {
       const units_t d = events::brush_units(b, centre_x(g_, x), centre_y(g_, y));
       r[x] += d;
@@ -143,7 +129,7 @@ total_t CpuBackend::apply_bedrock_brush(const events::Brush& b) {
 void CpuBackend::set_vegetation(const events::Region& r) {
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y) {
-    float* v = vegetation_.row(y);
+    float* v = f_.vegetation.row(y);
     for (int x = 0; x < g_.nx; ++x)
       if (events::in_region(r, centre_x(g_, x), centre_y(g_, y))) v[x] = r.value;
   }
@@ -154,9 +140,9 @@ total_t CpuBackend::set_obstacle(const obstacles::Shape& sh, bool remove) {
   total_t change = 0;
 #pragma omp parallel for num_threads(threads_) schedule(static) reduction(+ : change)
   for (int y = 0; y < g_.ny; ++y) {
-    float* o = obstacles_.row(y);
-    units_t* s = sand_.row(y);
-    units_t* a = airborne_.row(y);
+    float* o = f_.obstacles.row(y);
+    units_t* s = f_.sand.row(y);
+    units_t* a = f_.airborne.row(y);
     for (int x = 0; x < g_.nx; ++x) {
       if (!obstacles::covers(sh, centre_x(g_, x), centre_y(g_, y))) continue;
       if (remove) {
@@ -183,9 +169,9 @@ Totals CpuBackend::totals() {
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y) {
     total_t s = 0, a = 0, b = 0;
-    const units_t* ps = sand_.row(y);
-    const units_t* pa = airborne_.row(y);
-    const units_t* pb = bedrock_.row(y);
+    const units_t* ps = f_.sand.row(y);
+    const units_t* pa = f_.airborne.row(y);
+    const units_t* pb = f_.bedrock.row(y);
     for (int x = 0; x < g_.nx; ++x) {
       s += ps[x];
       a += pa[x];

@@ -42,8 +42,7 @@ class CpuBackend final : public Backend {
   std::string name() const override { return "cpu"; }
   void upload(const TileState& s) override;
   void download(TileState& s) override;
-  void download_wind(std::vector<float>& wind_xy) override;
-  void download_shadow(std::vector<float>& shadow) override;
+  void download_owned(fields::Id id, std::vector<float>& out) override;
 
   void wind(Vec2 a) override;
   void perturb_wind(const std::vector<wind_primitives::Batch>& batches) override;
@@ -70,21 +69,16 @@ class CpuBackend final : public Backend {
   TileGeom g_;
   int threads_;
   dist::Exchange& ex_;
-  // exact state
-  Field<units_t> bedrock_, sand_, airborne_;
-  Field<float> vegetation_, resistance_;
-  Field<float> obstacles_;       // obstacle heights, ghosts filled over the whole halo
+  // One padded field per registry entry (core/fields.h), by id or by the
+  // name the stages use (f_.sand, f_.reptation, ...).
+  fields::Named<Field> f_;
+  Field<units_t>& units(fields::Id id) { return f_.units[id]; }
+  Field<float>& reals(fields::Id id) { return f_.reals[id]; }
   bool any_obstacles_ = false;   // on this tile or its ghosts (saltation's slow path)
   void obstacles_changed();      // refills the ghosts, updates any_obstacles_
   bool bedrock_changed_ = true;  // since bedrock avalanching last found it settled
-  // derived each step
-  Field<float> height_m_;  // b + s in metres, halo filled for the shadow march
-  Field<float> wind_x_, wind_y_, shadow_;
-  Field<float> echo_;            // echo-dune classification r_e (stages/echo_dunes.h); 0 when off
-  Field<units_t> landed_;        // saltation scatter target (halo for the hop reach)
-  Field<float> reptation_;       // s_r
+  // scratch of single stages
   Field<units_t> height_units_;  // b + s, for reptation
-  Field<float> tan_l_;           // tan(repose(v)) * l for sand
   Field<units_t> sand_next_;     // reptation writes the new sand here
   // avalanching: heights (updated where they change) and fractions f
   Field<float> h_a_, frac_;

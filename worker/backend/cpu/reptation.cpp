@@ -37,24 +37,24 @@ void CpuBackend::reptation() {
   // on the tile grown by the avalanching halo (its ghosts computed exactly as
   // their owners compute them), and avalanching needs no exchange.
   const int w = m_.halo_avalanche_first() + 1;
-  ex_.fill(sand_, w);
-  ex_.fill(bedrock_, w);
+  ex_.fill(f_.sand, w);
+  ex_.fill(f_.bedrock, w);
   if (m_.reptation_k <= 0.0f) return;
-  ex_.fill(reptation_, w);
+  ex_.fill(f_.reptation, w);
   const int e = w - 1;
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = -w; y < g_.ny + w; ++y) {
-    const units_t* b = bedrock_.row(y);
-    const units_t* s = sand_.row(y);
+    const units_t* b = f_.bedrock.row(y);
+    const units_t* s = f_.sand.row(y);
     units_t* h = height_units_.row(y);
     for (int x = -w; x < g_.nx + w; ++x) h[x] = b[x] + s[x];
   }
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = -e; y < g_.ny + e; ++y)
-    reptation_row(height_units_.row(y) - e, sand_.row(y) - e, reptation_.row(y) - e,
-                  obstacles_.row(y) - e, sand_next_.row(y) - e, g_.nx + 2 * e, g_.pitch, g_.cell_m,
-                  m_.reptation_k);
-  sand_.swap(sand_next_);
+    reptation_row(height_units_.row(y) - e, f_.sand.row(y) - e, f_.reptation.row(y) - e,
+                  f_.obstacles.row(y) - e, sand_next_.row(y) - e, g_.nx + 2 * e, g_.pitch,
+                  g_.cell_m, m_.reptation_k);
+  f_.sand.swap(sand_next_);
 }
 
 }  // namespace erg::cpu

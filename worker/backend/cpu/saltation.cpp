@@ -41,8 +41,8 @@ void lift_row(units_t* __restrict s, units_t* __restrict air, const float* sh, c
 bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
                 units_t* __restrict air, const float* sh, const float* v, const float* r,
                 const float* wx, const float* wy, const float* echo, float* __restrict sr,
-                const TileGeom& g, int y, std::uint64_t seed, std::uint64_t step,
-                const saltation::Params& p) {
+                units_t* __restrict deposited, const TileGeom& g, int y, std::uint64_t seed,
+                std::uint64_t step, const saltation::Params& p) {
   const int nx = g.nx;
   units_t abraded = 0;
   if (p.stochastic) {
@@ -56,6 +56,7 @@ bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
       b[x] -= im.abraded;
       air[x] = im.bounced;
       sr[x] = im.reptation_m;
+      deposited[x] = im.deposited;
       abraded |= im.abraded;
     }
   } else {
@@ -66,6 +67,7 @@ bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
       b[x] -= im.abraded;
       air[x] = im.bounced;
       sr[x] = im.reptation_m;
+      deposited[x] = im.deposited;
       abraded |= im.abraded;
     }
   }
@@ -152,14 +154,14 @@ void CpuBackend::saltation(std::int64_t step) {
   // (1) Lift into the airborne buffer (which holds last step's bounces).
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y)
-    lift_row(sand_.row(y), airborne_.row(y), shadow_.row(y), vegetation_.row(y), wind_x_.row(y),
-             wind_y_.row(y), echo_.row(y), g_, y, seed, ustep, p);
+    lift_row(f_.sand.row(y), f_.airborne.row(y), f_.shadow.row(y), f_.vegetation.row(y),
+             f_.wind_x.row(y), f_.wind_y.row(y), f_.echo.row(y), g_, y, seed, ustep, p);
 
-  // (2) Scatter one hop downwind into `landed_` (owned + ghosts). Rows are cut
+  // (2) Scatter one hop downwind into `f_.landed` (owned + ghosts). Rows are cut
   // into bands taller than twice the hop reach; even bands run in parallel,
   // then odd bands, so no two threads ever add to the same cell. The sums are
   // integers: the result is the same for any band or thread layout.
-  std::fill(landed_.data(), landed_.data() + landed_.size(), units_t{0});
+  std::fill(f_.landed.data(), f_.landed.data() + f_.landed.size(), units_t{0});
   const int reach = m_.halo_saltation();
   const int band = std::max(2 * reach + 2, 8);
   const int nbands = std::max(1, g_.ny / band);
@@ -171,17 +173,17 @@ void CpuBackend::saltation(std::int64_t step) {
       std::vector<units_t> parts(4 * static_cast<size_t>(g_.nx));
       for (int y = y_begin; y < y_end; ++y) {
         if (any_obstacles_) {
-          scatter_row_obstacles(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_, y, seed,
-                                ustep, p, obstacles_.data() + g_.at(0, 0), landed_);
+          scatter_row_obstacles(f_.airborne.row(y), f_.wind_x.row(y), f_.wind_y.row(y), g_, y, seed,
+                                ustep, p, f_.obstacles.data() + g_.at(0, 0), f_.landed);
         } else if (p.stochastic) {
-          scatter_row_stochastic(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_, y, seed,
-                                 ustep, p, landed_);
+          scatter_row_stochastic(f_.airborne.row(y), f_.wind_x.row(y), f_.wind_y.row(y), g_, y,
+                                 seed, ustep, p, f_.landed);
         } else {
           // Landing points and exact splits in a vectorised pass, then the
           // adds (which may collide) in a scalar one.
-          split_row(airborne_.row(y), wind_x_.row(y), wind_y_.row(y), g_.nx, y,
+          split_row(f_.airborne.row(y), f_.wind_x.row(y), f_.wind_y.row(y), g_.nx, y,
                     static_cast<long>(g_.at(0, 0)), g_.pitch, p, target.data(), parts.data());
-          units_t* base = landed_.data();
+          units_t* base = f_.landed.data();
           const long pitch = g_.pitch;
           for (int x = 0; x < g_.nx; ++x) {
             const size_t k = 4 * static_cast<size_t>(x);
@@ -196,15 +198,16 @@ void CpuBackend::saltation(std::int64_t step) {
     }
   }
   // Sand that left the tile re-enters on the opposite side (the torus).
-  ex_.sum(landed_, reach);
+  ex_.sum(f_.landed, reach);
 
   // (3) Deposit, bounce, abrade; record the reptation strength.
   bool abraded = false;
 #pragma omp parallel for num_threads(threads_) schedule(static) reduction(|| : abraded)
   for (int y = 0; y < g_.ny; ++y)
-    abraded = impact_row(landed_.row(y), sand_.row(y), bedrock_.row(y), airborne_.row(y),
-                         shadow_.row(y), vegetation_.row(y), resistance_.row(y), wind_x_.row(y),
-                         wind_y_.row(y), echo_.row(y), reptation_.row(y), g_, y, seed, ustep, p) ||
+    abraded = impact_row(f_.landed.row(y), f_.sand.row(y), f_.bedrock.row(y), f_.airborne.row(y),
+                         f_.shadow.row(y), f_.vegetation.row(y), f_.resistance.row(y),
+                         f_.wind_x.row(y), f_.wind_y.row(y), f_.echo.row(y), f_.reptation.row(y),
+                         f_.deposited.row(y), g_, y, seed, ustep, p) ||
               abraded;
   if (abraded) bedrock_changed_ = true;
 }

@@ -47,7 +47,7 @@ void march_segment(const float* base, int pitch, const float* wx, const float* w
 
 void CpuBackend::shadow() {
   const wind_shadow::Params& p = m_.shadow;
-  const float* base = height_m_.data() + g_.at(0, 0);
+  const float* base = f_.height_m.data() + g_.at(0, 0);
   const int pitch = g_.pitch;
   constexpr int B = 8;
   // Maxima of B x B blocks of the padded height field (row maxima per block
@@ -58,7 +58,7 @@ void CpuBackend::shadow() {
   for (int by = 0; by < pby; ++by) {
     float* out = block_max_.data() + static_cast<size_t>(by) * pbx;
     for (int py = by * B; py < std::min((by + 1) * B, g_.rows()); ++py) {
-      const float* r = height_m_.data() + static_cast<size_t>(py) * pitch;
+      const float* r = f_.height_m.data() + static_cast<size_t>(py) * pitch;
       for (int bx = 0; bx < pitch / B; ++bx) {
         float m = r[bx * B];
         for (int k = 1; k < B; ++k) m = std::max(m, r[bx * B + k]);
@@ -98,8 +98,8 @@ void CpuBackend::shadow() {
   // Segments of a row: settled by the bound, or marched step-major.
 #pragma omp parallel for num_threads(threads_) schedule(dynamic, 4)
   for (int y = 0; y < g_.ny; ++y) {
-    const float* h = height_m_.row(y);
-    float* out = shadow_.row(y);
+    const float* h = f_.height_m.row(y);
+    float* out = f_.shadow.row(y);
     for (int x0 = 0; x0 < g_.nx; x0 += kSegment) {
       const int x1 = std::min(x0 + kSegment, g_.nx);
       bool settled = true;
@@ -110,19 +110,19 @@ void CpuBackend::shadow() {
         std::fill(out + x0, out + x1, 0.0f);
         continue;
       }
-      march_segment(base, pitch, wind_x_.row(y), wind_y_.row(y), x0, x1, y, p, out);
+      march_segment(base, pitch, f_.wind_x.row(y), f_.wind_y.row(y), x0, x1, y, p, out);
     }
   }
   // Echo dunes: erosion and sticky cells in front of cliffs, from the same
   // heights (stages/echo_dunes.h).
   if (m_.echo.on) {
     const echo_dunes::Params e = m_.echo;
-    const float* o_base = obstacles_.data() + g_.at(0, 0);
+    const float* o_base = f_.obstacles.data() + g_.at(0, 0);
 #pragma omp parallel for num_threads(threads_) schedule(dynamic, 4)
     for (int y = 0; y < g_.ny; ++y) {
-      const float* wx = wind_x_.row(y);
-      const float* wy = wind_y_.row(y);
-      float* out = echo_.row(y);
+      const float* wx = f_.wind_x.row(y);
+      const float* wy = f_.wind_y.row(y);
+      float* out = f_.echo.row(y);
       for (int x = 0; x < g_.nx; ++x)
         out[x] = echo_dunes::classify(base, o_base, pitch, x, y, {wx[x], wy[x]}, e);
     }

@@ -112,10 +112,10 @@ void CpuBackend::wind(Vec2 a) {
   for (int J = 0; J < cny; ++J) {
     std::vector<total_t> sums(static_cast<size_t>(cnx), 0);
     for (int y = J * c.cy; y < (J + 1) * c.cy; ++y) {
-      const units_t* b = bedrock_.row(y);
-      const units_t* s = sand_.row(y);
-      const float* o = obstacles_.row(y);
-      float* h = height_m_.row(y);
+      const units_t* b = f_.bedrock.row(y);
+      const units_t* s = f_.sand.row(y);
+      const float* o = f_.obstacles.row(y);
+      float* h = f_.height_m.row(y);
       // The wind sees obstacles as terrain [BR04 4.3] (stages/obstacles.h).
       for (int x = 0; x < g_.nx; ++x) h[x] = units_to_m(b[x] + s[x]) + o[x];
       for (int I = 0; I < cnx; ++I) {
@@ -132,7 +132,7 @@ void CpuBackend::wind(Vec2 a) {
   // The shadow march reads heights in the halo: the exchange runs while the
   // coarse grid is gathered and smoothed and the wind warped (none of which
   // reads ghosts).
-  ex_.begin_fill(height_m_, m_.halo_shadow());
+  ex_.begin_fill(f_.height_m, m_.halo_shadow());
   ex_.gather_coarse(mine, coarse_h_);
   smoother_.gradients(coarse_h_, grad_x_, grad_y_);
 
@@ -158,11 +158,11 @@ void CpuBackend::wind(Vec2 a) {
       for (int i = 0; i < c.nx; ++i)
         rows[static_cast<size_t>(f) * c.nx + i] =
             wind_warping::lerp_rows(fields[f]->data(), c.nx, ay, i);
-    warp_row(height_m_.row(y), wind_x_.row(y), wind_y_.row(y), g_.nx, a, k, wp, axis_x_i0_.data(),
-             axis_x_i1_.data(), axis_x_t_.data(), rows.data(), rows.data() + c.nx,
-             rows.data() + 2 * c.nx, rows.data() + 3 * c.nx);
+    warp_row(f_.height_m.row(y), f_.wind_x.row(y), f_.wind_y.row(y), g_.nx, a, k, wp,
+             axis_x_i0_.data(), axis_x_i1_.data(), axis_x_t_.data(), rows.data(),
+             rows.data() + c.nx, rows.data() + 2 * c.nx, rows.data() + 3 * c.nx);
   }
-  ex_.finish_fill(height_m_, m_.halo_shadow());
+  ex_.finish_fill(f_.height_m, m_.halo_shadow());
 }
 
 // Every owned cell from its global index only: no ghosts are read, and the
@@ -210,8 +210,8 @@ void CpuBackend::perturb_wind(const std::vector<wind_primitives::Batch>& batches
           }
         }
         if (!row) continue;
-        float* wx = wind_x_.row(y);
-        float* wy = wind_y_.row(y);
+        float* wx = f_.wind_x.row(y);
+        float* wy = f_.wind_y.row(y);
         for (int x = 0; x < g_.nx; ++x) {
           const size_t i = static_cast<size_t>(x);
           if (!touched[i]) continue;

@@ -99,13 +99,13 @@ __global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h,
 int CudaBackend::avalanche(bool bedrock, int iterations) {
   if (iterations <= 0) return 0;
   const Offsets off = neighbour_offsets(g_.pitch);
-  DeviceBuffer<units_t>& target = bedrock ? bedrock_ : sand_;
+  DeviceBuffer<units_t>& target = bedrock ? d_.bedrock : d_.sand;
   AvalancheRounds::Round round = m_.rounds.of(1, iterations);
   int e = 2 * round.length;
   const bool alone = ex_.tiles() == 1;
 
   ERG_LAUNCH(level0_kernel, grown_cells(g_, e).grid, grown_cells(g_, e).block, g_, e, false,
-             bedrock, bedrock_.get(), sand_.get(), obstacles_.get(), h_a_.get());
+             bedrock, d_.bedrock.get(), d_.sand.get(), d_.obstacles.get(), h_a_.get());
   // moved_[it - 1]: iteration it sent sand; moved_[iterations + it - 1]: it
   // had a donor (f > 0).
   ERG_CUDA_CHECK(
@@ -131,9 +131,10 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
       const int e_last = e;
       e = 2 * round.length;
       fill(target, e + 1);
-      if (e > e_last && !bedrock) fill(bedrock_, e + 1);
+      if (e > e_last && !bedrock) fill(d_.bedrock, e + 1);
       ERG_LAUNCH(level0_kernel, grown_cells(g_, e).grid, grown_cells(g_, e).block, g_, e,
-                 e <= e_last, bedrock, bedrock_.get(), sand_.get(), obstacles_.get(), h_a_.get());
+                 e <= e_last, bedrock, d_.bedrock.get(), d_.sand.get(), d_.obstacles.get(),
+                 h_a_.get());
     }
     const int j = it - round.first + 1;  // iteration within the round
     const float kc = avalanching::kc_for(it, iterations, kc_full, m_.kc_damped);
@@ -143,20 +144,21 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
     int* donors = moved_.get() + iterations + (it - 1);
     if (bedrock)
       ERG_LAUNCH(donor_kernel<true>, l1.grid, l1.block, g_, grow1, off, h_a_.get(), nullptr,
-                 m_.tan_l_bedrock, nullptr, obstacles_.get(), kc, frac_.get(), out_.get(), moved,
+                 m_.tan_l_bedrock, nullptr, d_.obstacles.get(), kc, frac_.get(), out_.get(), moved,
                  donors);
     else
-      ERG_LAUNCH(donor_kernel<false>, l1.grid, l1.block, g_, grow1, off, h_a_.get(), tan_l_.get(),
-                 0.0f, sand_.get(), obstacles_.get(), kc, frac_.get(), out_.get(), moved, donors);
+      ERG_LAUNCH(donor_kernel<false>, l1.grid, l1.block, g_, grow1, off, h_a_.get(), d_.tan_l.get(),
+                 0.0f, d_.sand.get(), d_.obstacles.get(), kc, frac_.get(), out_.get(), moved,
+                 donors);
 
     if (bedrock)
       ERG_LAUNCH(inflow_kernel<true>, l2.grid, l2.block, g_, grow2, off, h_a_.get(), nullptr,
                  m_.tan_l_bedrock, frac_.get(), out_.get(), m_.bedrock_to_sand, target.get(),
-                 sand_.get(), bedrock_.get(), obstacles_.get(), h_b_.get());
+                 d_.sand.get(), d_.bedrock.get(), d_.obstacles.get(), h_b_.get());
     else
-      ERG_LAUNCH(inflow_kernel<false>, l2.grid, l2.block, g_, grow2, off, h_a_.get(), tan_l_.get(),
-                 0.0f, frac_.get(), out_.get(), false, target.get(), sand_.get(), bedrock_.get(),
-                 obstacles_.get(), h_b_.get());
+      ERG_LAUNCH(inflow_kernel<false>, l2.grid, l2.block, g_, grow2, off, h_a_.get(),
+                 d_.tan_l.get(), 0.0f, frac_.get(), out_.get(), false, target.get(), d_.sand.get(),
+                 d_.bedrock.get(), d_.obstacles.get(), h_b_.get());
     h_a_.swap(h_b_);
   }
 

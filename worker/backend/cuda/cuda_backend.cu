@@ -232,16 +232,6 @@ __global__ void totals_kernel(TileGeom g, const units_t* sand, const units_t* ai
   }
 }
 
-// Owned wind as row-major (x, y) pairs.
-__global__ void pack_wind_kernel(TileGeom g, const float* wx, const float* wy, float* out) {
-  int x, y;
-  if (!owned_cell(g, x, y)) return;
-  const std::size_t i = g.at(x, y);
-  const std::size_t o = (static_cast<std::size_t>(y) * g.nx + x) * 2;
-  out[o] = wx[i];
-  out[o + 1] = wy[i];
-}
-
 }  // namespace
 
 // ---- the backend ------------------------------------------------------------------
@@ -255,20 +245,13 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
   ERG_CUDA_CHECK(cudaSetDevice(0));
 
   const std::size_t n = g_.size();
-  bedrock_.reset(n);
-  sand_.reset(n);
-  airborne_.reset(n);
-  vegetation_.reset(n);
-  resistance_.reset(n);
-  obstacles_.reset(n);
-  height_m_.reset(n);
-  wind_x_.reset(n);
-  wind_y_.reset(n);
-  shadow_.reset(n);
-  echo_.reset(n);
-  landed_.reset(n);
-  reptation_.reset(n);
-  tan_l_.reset(n);
+  fields::each([&](fields::Id id, const fields::Info& f) {
+    // (Every registry default is 0, what DeviceBuffer::reset leaves.)
+    if (f.type == fields::Type::kUnits)
+      units(id).reset(n);
+    else
+      reals(id).reset(n);
+  });
   sand_next_.reset(n);
   h_a_.reset(n);
   h_b_.reset(n);
@@ -311,7 +294,6 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
 
   row_sums_.reset(3 * static_cast<std::size_t>(g_.ny));
   host_rows_.assign(3 * static_cast<std::size_t>(g_.ny), 0);
-  wind_xy_.reset(2 * static_cast<std::size_t>(g_.nx) * g_.ny);
 }
 
 namespace {
@@ -330,20 +312,21 @@ void copy_out(const DeviceBuffer<T>& d, Field<T>& h, const TileGeom& g) {
 }  // namespace
 
 void CudaBackend::upload(const TileState& s) {
-  copy_in(bedrock_, s.bedrock, "bedrock");
-  copy_in(sand_, s.sand, "sand");
-  copy_in(airborne_, s.airborne, "airborne");
-  copy_in(vegetation_, s.vegetation, "vegetation");
-  copy_in(resistance_, s.resistance, "resistance");
-  copy_in(obstacles_, s.obstacles, "obstacles");
+  fields::each([&](fields::Id id, const fields::Info& f) {
+    if (!f.state) return;
+    if (f.type == fields::Type::kUnits)
+      copy_in(units(id), s.units[id], f.name);
+    else
+      copy_in(reals(id), s.reals[id], f.name);
+  });
   update_repose();
   obstacles_changed();
 }
 
 void CudaBackend::obstacles_changed() {
-  fill(obstacles_, g_.halo);
+  fill(d_.obstacles, g_.halo);
   Field<float> o;
-  copy_out(obstacles_, o, g_);
+  copy_out(d_.obstacles, o, g_);
   bool any = false;
   for (std::size_t i = 0; i < o.size(); ++i) any |= obstacles::is_obstacle(o.data()[i]);
   any_obstacles_ = any;
@@ -353,9 +336,9 @@ void CudaBackend::obstacles_changed() {
 total_t CudaBackend::set_obstacle(const obstacles::Shape& sh, bool remove) {
   Field<float> o;
   Field<units_t> s, a;
-  copy_out(obstacles_, o, g_);
-  copy_out(sand_, s, g_);
-  copy_out(airborne_, a, g_);
+  copy_out(d_.obstacles, o, g_);
+  copy_out(d_.sand, s, g_);
+  copy_out(d_.airborne, a, g_);
   total_t change = 0;
   for (int y = 0; y < g_.ny; ++y)
     for (int x = 0; x < g_.nx; ++x) {
@@ -369,9 +352,9 @@ total_t CudaBackend::set_obstacle(const obstacles::Shape& sh, bool remove) {
         a(x, y) = 0;
       }
     }
-  copy_in(obstacles_, o, "obstacles");
-  copy_in(sand_, s, "sand");
-  copy_in(airborne_, a, "airborne");
+  copy_in(d_.obstacles, o, "obstacles");
+  copy_in(d_.sand, s, "sand");
+  copy_in(d_.airborne, a, "airborne");
   obstacles_changed();
   std::vector<total_t> all{change};
   ex_.sum_exact(all);
@@ -380,35 +363,42 @@ total_t CudaBackend::set_obstacle(const obstacles::Shape& sh, bool remove) {
 
 void CudaBackend::download(TileState& s) {
   s.geom = g_;
-  copy_out(bedrock_, s.bedrock, g_);
-  copy_out(sand_, s.sand, g_);
-  copy_out(airborne_, s.airborne, g_);
-  copy_out(vegetation_, s.vegetation, g_);
-  copy_out(resistance_, s.resistance, g_);
-  copy_out(obstacles_, s.obstacles, g_);
+  fields::each([&](fields::Id id, const fields::Info& f) {
+    if (!f.state) return;
+    if (f.type == fields::Type::kUnits)
+      copy_out(units(id), s.units[id], g_);
+    else
+      copy_out(reals(id), s.reals[id], g_);
+  });
 }
 
-void CudaBackend::download_wind(std::vector<float>& wind_xy) {
-  const Launch l = owned_cells(g_);
-  ERG_LAUNCH(pack_wind_kernel, l.grid, l.block, g_, wind_x_.get(), wind_y_.get(), wind_xy_.get());
-  wind_xy.resize(wind_xy_.size());
-  ERG_CUDA_CHECK(
-      cudaMemcpy(wind_xy.data(), wind_xy_.get(), wind_xy_.bytes(), cudaMemcpyDeviceToHost));
+namespace {
+// The owned cells of a padded device field, row-major.
+template <class T>
+std::vector<T> owned_of(const DeviceBuffer<T>& d, const TileGeom& g) {
+  std::vector<T> out(static_cast<std::size_t>(g.nx) * g.ny);
+  ERG_CUDA_CHECK(cudaMemcpy2D(out.data(), sizeof(T) * g.nx, d.get() + g.at(0, 0),
+                              sizeof(T) * g.pitch, sizeof(T) * g.nx, g.ny, cudaMemcpyDeviceToHost));
+  return out;
 }
+}  // namespace
 
-void CudaBackend::download_shadow(std::vector<float>& shadow) {
-  shadow.resize(static_cast<std::size_t>(g_.nx) * g_.ny);
-  ERG_CUDA_CHECK(cudaMemcpy2D(shadow.data(), sizeof(float) * g_.nx, shadow_.get() + g_.at(0, 0),
-                              sizeof(float) * g_.pitch, sizeof(float) * g_.nx, g_.ny,
-                              cudaMemcpyDeviceToHost));
+void CudaBackend::download_owned(fields::Id id, std::vector<float>& out) {
+  if (fields::info(id).type == fields::Type::kFloat) {
+    out = owned_of(reals(id), g_);
+    return;
+  }
+  const std::vector<units_t> u = owned_of(units(id), g_);
+  out.resize(u.size());
+  for (std::size_t i = 0; i < u.size(); ++i) out[i] = static_cast<float>(units_to_m_d(u[i]));
 }
 
 void CudaBackend::update_repose() {
   const Launch l = owned_cells(g_);
-  ERG_LAUNCH(repose_kernel, l.grid, l.block, g_, vegetation_.get(), tan_l_.get(), m_.tan_l_sand,
+  ERG_LAUNCH(repose_kernel, l.grid, l.block, g_, d_.vegetation.get(), d_.tan_l.get(), m_.tan_l_sand,
              m_.tan_l_vegetated);
   // Avalanching reads the tangents inside its whole halo.
-  fill(tan_l_, m_.halo_avalanche() + 1);
+  fill(d_.tan_l, m_.halo_avalanche() + 1);
 }
 
 void CudaBackend::fetch_rows(int count) {
@@ -423,8 +413,8 @@ total_t CudaBackend::sum_rows(int first, int count) const {
 }
 
 total_t CudaBackend::apply_sand_brush(const events::Brush& b) {
-  ERG_LAUNCH(sand_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, sand_.get(),
-             obstacles_.get(), row_sums_.get());
+  ERG_LAUNCH(sand_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, d_.sand.get(),
+             d_.obstacles.get(), row_sums_.get());
   fetch_rows(g_.ny);
   std::vector<total_t> all{sum_rows(0, g_.ny)};
   ex_.sum_exact(all);
@@ -432,7 +422,7 @@ total_t CudaBackend::apply_sand_brush(const events::Brush& b) {
 }
 
 total_t CudaBackend::apply_bedrock_brush(const events::Brush& b) {
-  ERG_LAUNCH(bedrock_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, bedrock_.get(),
+  ERG_LAUNCH(bedrock_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, d_.bedrock.get(),
              row_sums_.get());
   fetch_rows(g_.ny);
   std::vector<total_t> all{sum_rows(0, g_.ny)};
@@ -442,13 +432,13 @@ total_t CudaBackend::apply_bedrock_brush(const events::Brush& b) {
 
 void CudaBackend::set_vegetation(const events::Region& r) {
   const Launch l = owned_cells(g_);
-  ERG_LAUNCH(vegetation_kernel, l.grid, l.block, g_, r, vegetation_.get());
+  ERG_LAUNCH(vegetation_kernel, l.grid, l.block, g_, r, d_.vegetation.get());
   update_repose();
 }
 
 Totals CudaBackend::totals() {
-  ERG_LAUNCH(totals_kernel, dim3(g_.ny), dim3(kRowThreads), g_, sand_.get(), airborne_.get(),
-             bedrock_.get(), row_sums_.get());
+  ERG_LAUNCH(totals_kernel, dim3(g_.ny), dim3(kRowThreads), g_, d_.sand.get(), d_.airborne.get(),
+             d_.bedrock.get(), row_sums_.get());
   fetch_rows(3 * g_.ny);
   std::vector<total_t> all{sum_rows(0, g_.ny), sum_rows(g_.ny, g_.ny), sum_rows(2 * g_.ny, g_.ny)};
   ex_.sum_exact(all);

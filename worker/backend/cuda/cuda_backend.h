@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "backend/backend.h"
+#include "core/fields.h"
 #include "core/grid.h"
 #include "core/units.h"
 
@@ -194,8 +195,7 @@ class CudaBackend final : public Backend {
   std::string name() const override { return "cuda"; }
   void upload(const TileState& s) override;
   void download(TileState& s) override;
-  void download_wind(std::vector<float>& wind_xy) override;
-  void download_shadow(std::vector<float>& shadow) override;
+  void download_owned(fields::Id id, std::vector<float>& out) override;
 
   void wind(Vec2 a) override;                                                      // wind.cu
   void perturb_wind(const std::vector<wind_primitives::Batch>& batches) override;  // wind.cu
@@ -231,19 +231,13 @@ class CudaBackend final : public Backend {
   dist::Exchange& ex_;
   Field<units_t> stage_units_;  // host staging of ghosts (several tiles)
   Field<float> stage_float_;
-  // exact state (padded, TileGeom::at layout)
-  DeviceBuffer<units_t> bedrock_, sand_, airborne_;
-  DeviceBuffer<float> vegetation_, resistance_;
-  DeviceBuffer<float> obstacles_;  // obstacle heights, ghosts filled over the whole halo
-  bool any_obstacles_ = false;     // on this tile or its ghosts (saltation's slow path)
-  void obstacles_changed();        // refills the ghosts, updates any_obstacles_
-  // derived each step
-  DeviceBuffer<float> height_m_;  // b + s in metres, halo filled for the shadow march
-  DeviceBuffer<float> wind_x_, wind_y_, shadow_;
-  DeviceBuffer<float> echo_;       // echo-dune classification r_e (stages/echo_dunes.h); 0 when off
-  DeviceBuffer<units_t> landed_;   // saltation scatter target (halo for the hop reach)
-  DeviceBuffer<float> reptation_;  // s_r
-  DeviceBuffer<float> tan_l_;      // tan(repose(v)) * l for sand
+  // One padded device buffer per registry entry (core/fields.h, TileGeom::at
+  // layout), by id or by the name the stages use (d_.sand, d_.reptation, ...).
+  fields::Named<DeviceBuffer> d_;
+  DeviceBuffer<units_t>& units(fields::Id id) { return d_.units[id]; }
+  DeviceBuffer<float>& reals(fields::Id id) { return d_.reals[id]; }
+  bool any_obstacles_ = false;  // on this tile or its ghosts (saltation's slow path)
+  void obstacles_changed();     // refills the ghosts, updates any_obstacles_
   // reptation / avalanching work buffers
   DeviceBuffer<units_t> sand_next_;
   DeviceBuffer<float> h_a_, h_b_, frac_;
@@ -260,7 +254,6 @@ class CudaBackend final : public Backend {
   // reductions and downloads
   DeviceBuffer<total_t> row_sums_;  // 3 ny
   std::vector<total_t> host_rows_;
-  DeviceBuffer<float> wind_xy_;  // owned wind, interleaved, for download_wind
 };
 
 }  // namespace erg::gpu

@@ -34,16 +34,16 @@ void CudaBackend::reptation() {
   // the layers and impact strengths with the avalanching halo plus one;
   // reptation runs on the tile grown by the avalanching halo.
   const int w = m_.halo_avalanche_first() + 1;
-  fill(sand_, w);
-  fill(bedrock_, w);
+  fill(d_.sand, w);
+  fill(d_.bedrock, w);
   if (m_.reptation_k <= 0.0f) return;
-  fill(reptation_, w);
+  fill(d_.reptation, w);
   const int grow = w - 1;
   const Launch l = grown_cells(g_, grow);
   ERG_LAUNCH(reptation_kernel, l.grid, l.block, g_, grow, neighbour_offsets(g_.pitch),
-             m_.reptation_k, bedrock_.get(), sand_.get(), reptation_.get(), obstacles_.get(),
-             sand_next_.get());
-  sand_.swap(sand_next_);
+             m_.reptation_k, d_.bedrock.get(), d_.sand.get(), d_.reptation.get(),
+             d_.obstacles.get(), sand_next_.get());
+  d_.sand.swap(sand_next_);
 }
 
 }  // namespace erg::gpu

@@ -91,7 +91,8 @@ __global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t see
                               std::uint64_t step, const units_t* landed, units_t* sand,
                               units_t* bedrock, units_t* airborne, const float* shadow,
                               const float* vegetation, const float* resistance, const float* wind_x,
-                              const float* wind_y, const float* echo, float* reptation) {
+                              const float* wind_y, const float* echo, float* reptation,
+                              units_t* deposited) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -106,6 +107,7 @@ __global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t see
   bedrock[i] -= im.abraded;
   airborne[i] = im.bounced;
   reptation[i] = im.reptation_m;
+  deposited[i] = im.deposited;
 }
 
 }  // namespace
@@ -116,18 +118,19 @@ void CudaBackend::saltation(std::int64_t step) {
   const auto ustep = static_cast<std::uint64_t>(step);
   const Launch l = owned_cells(g_);
 
-  ERG_LAUNCH(lift_kernel, l.grid, l.block, g_, p, seed, ustep, sand_.get(), airborne_.get(),
-             shadow_.get(), vegetation_.get(), wind_x_.get(), wind_y_.get(), echo_.get());
+  ERG_LAUNCH(lift_kernel, l.grid, l.block, g_, p, seed, ustep, d_.sand.get(), d_.airborne.get(),
+             d_.shadow.get(), d_.vegetation.get(), d_.wind_x.get(), d_.wind_y.get(), d_.echo.get());
 
-  ERG_CUDA_CHECK(cudaMemsetAsync(landed_.get(), 0, landed_.bytes()));
-  ERG_LAUNCH(scatter_kernel, l.grid, l.block, g_, p, seed, ustep, airborne_.get(), wind_x_.get(),
-             wind_y_.get(), obstacles_.get(), any_obstacles_, landed_.get());
+  ERG_CUDA_CHECK(cudaMemsetAsync(d_.landed.get(), 0, d_.landed.bytes()));
+  ERG_LAUNCH(scatter_kernel, l.grid, l.block, g_, p, seed, ustep, d_.airborne.get(),
+             d_.wind_x.get(), d_.wind_y.get(), d_.obstacles.get(), any_obstacles_, d_.landed.get());
   // Sand that left the tile re-enters on the opposite side (the torus).
-  sum(landed_, m_.halo_saltation());
+  sum(d_.landed, m_.halo_saltation());
 
-  ERG_LAUNCH(impact_kernel, l.grid, l.block, g_, p, seed, ustep, landed_.get(), sand_.get(),
-             bedrock_.get(), airborne_.get(), shadow_.get(), vegetation_.get(), resistance_.get(),
-             wind_x_.get(), wind_y_.get(), echo_.get(), reptation_.get());
+  ERG_LAUNCH(impact_kernel, l.grid, l.block, g_, p, seed, ustep, d_.landed.get(), d_.sand.get(),
+             d_.bedrock.get(), d_.airborne.get(), d_.shadow.get(), d_.vegetation.get(),
+             d_.resistance.get(), d_.wind_x.get(), d_.wind_y.get(), d_.echo.get(),
+             d_.reptation.get(), d_.deposited.get());
 }
 
 }  // namespace erg::gpu

@@ -30,11 +30,11 @@ __global__ void echo_kernel(TileGeom g, echo_dunes::Params p, const float* h_bas
 void CudaBackend::shadow() {
   const Launch l = owned_cells(g_);
   // h_base points at local cell (0, 0), as wind_shadow::shadow expects.
-  ERG_LAUNCH(shadow_kernel, l.grid, l.block, g_, m_.shadow, height_m_.get() + g_.at(0, 0),
-             wind_x_.get(), wind_y_.get(), shadow_.get());
+  ERG_LAUNCH(shadow_kernel, l.grid, l.block, g_, m_.shadow, d_.height_m.get() + g_.at(0, 0),
+             d_.wind_x.get(), d_.wind_y.get(), d_.shadow.get());
   if (m_.echo.on)
-    ERG_LAUNCH(echo_kernel, l.grid, l.block, g_, m_.echo, height_m_.get() + g_.at(0, 0),
-               obstacles_.get() + g_.at(0, 0), wind_x_.get(), wind_y_.get(), echo_.get());
+    ERG_LAUNCH(echo_kernel, l.grid, l.block, g_, m_.echo, d_.height_m.get() + g_.at(0, 0),
+               d_.obstacles.get() + g_.at(0, 0), d_.wind_x.get(), d_.wind_y.get(), d_.echo.get());
 }
 
 }  // namespace erg::gpu

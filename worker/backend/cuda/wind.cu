@@ -115,7 +115,7 @@ __global__ void perturb_kernel(TileGeom g, wind_primitives::Batch b, float* wind
 void CudaBackend::perturb_wind(const std::vector<wind_primitives::Batch>& batches) {
   const Launch cells = owned_cells(g_);
   for (const wind_primitives::Batch& b : batches)
-    ERG_LAUNCH(perturb_kernel, cells.grid, cells.block, g_, b, wind_x_.get(), wind_y_.get());
+    ERG_LAUNCH(perturb_kernel, cells.grid, cells.block, g_, b, d_.wind_x.get(), d_.wind_y.get());
 }
 
 void CudaBackend::coarse_gradients() {
@@ -140,15 +140,15 @@ void CudaBackend::wind(Vec2 a) {
   const CoarseGrid& c = m_.coarse;
   const Launch cells = owned_cells(g_);
   // Heights in metres (owned + the ghosts the shadow march reads).
-  ERG_LAUNCH(heights_kernel, cells.grid, cells.block, g_, bedrock_.get(), sand_.get(),
-             obstacles_.get(), height_m_.get());
-  fill(height_m_, m_.halo_shadow());
+  ERG_LAUNCH(heights_kernel, cells.grid, cells.block, g_, d_.bedrock.get(), d_.sand.get(),
+             d_.obstacles.get(), d_.height_m.get());
+  fill(d_.height_m, m_.halo_shadow());
 
   // Exact block sums of this tile's coarse cells; every tile gets the whole
   // coarse grid (the same integer sums whatever the tiling).
   const int tcnx = g_.nx / c.cx, tcny = g_.ny / c.cy;
   ERG_LAUNCH(coarse_sum_kernel, dim3(static_cast<unsigned>(tcnx * tcny)), dim3(kCoarseThreads), g_,
-             c, tcnx, bedrock_.get(), sand_.get(), obstacles_.get(), coarse_mine_.get());
+             c, tcnx, d_.bedrock.get(), d_.sand.get(), d_.obstacles.get(), coarse_mine_.get());
   std::vector<double> mine(coarse_mine_.size()), all;
   ERG_CUDA_CHECK(
       cudaMemcpy(mine.data(), coarse_mine_.get(), coarse_mine_.bytes(), cudaMemcpyDeviceToHost));
@@ -157,9 +157,9 @@ void CudaBackend::wind(Vec2 a) {
       cudaMemcpy(coarse_h_.get(), all.data(), coarse_h_.bytes(), cudaMemcpyHostToDevice));
   coarse_gradients();
 
-  ERG_LAUNCH(wind_kernel, cells.grid, cells.block, g_, c, a, m_.venturi_k, m_.warp, height_m_.get(),
-             grad_x_[0].get(), grad_y_[0].get(), grad_x_[1].get(), grad_y_[1].get(), wind_x_.get(),
-             wind_y_.get());
+  ERG_LAUNCH(wind_kernel, cells.grid, cells.block, g_, c, a, m_.venturi_k, m_.warp,
+             d_.height_m.get(), grad_x_[0].get(), grad_y_[0].get(), grad_x_[1].get(),
+             grad_y_[1].get(), d_.wind_x.get(), d_.wind_y.get());
 }
 
 }  // namespace erg::gpu
