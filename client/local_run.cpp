@@ -222,7 +222,7 @@ int cmd_check(const std::vector<std::string>& args) {
   }
   try {
     const auto spec = erg::job::load_job_file(args[0]);
-    std::cout << erg::job::to_json(spec) << "\n";
+    std::cout << erg::job::to_readable_json(spec) << "\n";
     // What each map file holds and what was done to fit it (pixel size,
     // units, resampling, border blending), on stderr to keep stdout JSON.
     for (const auto& note : erg::job::describe_maps(spec, erg::job::base_dir_of(args[0])))

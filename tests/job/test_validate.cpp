@@ -698,7 +698,72 @@ TEST(LoadJobFile, MissingFileNamesTheFile) {
     FAIL() << "accepted";
   } catch (const SpecError& e) {
     EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+    // The system's reason, not only "cannot open".
+    EXPECT_NE(std::string(e.what()).find("No such file or directory"), std::string::npos)
+        << e.what();
   }
+}
+
+// Six different mistakes, one line each, in one pass: two unknown fields
+// (one a typo, named with the field meant), an enum value not in the schema
+// (with the allowed values, no type URL), two values out of range and a
+// cross-field rule.
+const char* kSixMistakes = R"({
+  "transport": "STOCHASTICAL",
+  "colour": "red",
+  "domain": {"nx": -5, "ny": 64, "cell_size_m": 1},
+  "run": {"steps": 100, "snapshot_evry": 10},
+  "model": {"max_hop_m": 40},
+  "wind": {"constant": {"speed_mps": 8, "direction_deg": 400}}
+})";
+
+TEST(LoadJobFile, EveryProblemInOnePass) {
+  TempDir dir;
+  const std::string path = dir.file("six.json");
+  testing::write_text(path, kSixMistakes);
+  try {
+    load_job_file(path);
+    FAIL() << "accepted";
+  } catch (const SpecError& e) {
+    const auto& p = e.problems();
+    ASSERT_EQ(p.size(), 6u) << e.what();
+    EXPECT_TRUE(HasProblem(p, {path + ": colour: unknown field; allowed name, domain"}));
+    EXPECT_TRUE(HasProblem(p, {"run.snapshot_evry: unknown field; did you mean 'snapshot_every'"}));
+    EXPECT_TRUE(HasProblem(
+        p, {"transport = \"STOCHASTICAL\" is not a known value; allowed EXPECTED, STOCHASTIC"}));
+    EXPECT_TRUE(HasProblem(p, {"domain.nx = -5 is out of range; allowed [8, 1048576] cells"}));
+    EXPECT_TRUE(HasProblem(p, {"wind.constant.direction_deg = 400 is out of range"}));
+    EXPECT_TRUE(HasProblem(p, {"model.max_hop_m = 40 m", "at most 16 cells"}));
+    for (const auto& line : p) EXPECT_EQ(line.find("type.googleapis.com"), std::string::npos);
+  }
+}
+
+TEST(LoadJobFile, WrongTypesAreNamedOnceEach) {
+  TempDir dir;
+  const std::string path = dir.file("types.json");
+  testing::write_text(path, R"({"domain": {"nx": "many", "ny": 48.5, "cell_size_m": 1},
+                              "wind": {"constant": {"speed_mps": true}}, "name": 3})");
+  try {
+    load_job_file(path);
+    FAIL() << "accepted";
+  } catch (const SpecError& e) {
+    const auto& p = e.problems();
+    ASSERT_EQ(p.size(), 4u) << e.what();  // not again as "required"
+    EXPECT_TRUE(HasProblem(p, {"domain.nx = \"many\" is not a whole number; allowed [8"}));
+    EXPECT_TRUE(HasProblem(p, {"domain.ny = 48.5 is not a whole number"}));
+    EXPECT_TRUE(HasProblem(p, {"wind.constant.speed_mps = true is not a number"}));
+    EXPECT_TRUE(HasProblem(p, {"name = 3 is not a string"}));
+  }
+}
+
+TEST(ReadableJson, IntegersAreNumbersAndParseBack) {
+  const JobSpec spec = parse_with_defaults(kMinimalJob);
+  const std::string text = to_readable_json(spec);
+  EXPECT_NE(text.find("\"nx\": 64"), std::string::npos) << text;
+  EXPECT_NE(text.find("\"steps\": 1000"), std::string::npos) << text;
+  EXPECT_EQ(text.find("\"nx\": \"64\""), std::string::npos) << text;
+  const JobSpec back = parse_json(text);
+  EXPECT_EQ(back.SerializeAsString(), spec.SerializeAsString());
 }
 
 TEST(LoadJobFile, RelativeMapPathsAreResolvedAgainstTheJobDirectory) {

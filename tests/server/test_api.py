@@ -110,6 +110,32 @@ class Api(ErgdTest):
         self.assertNotIn(job.id, ids)
         self.ergd.wait(job.id)
 
+    def test_a_spec_with_six_mistakes_gets_six_lines(self):
+        # The mistakes of erg check's test (tests/job), as a binary client can
+        # make them: fields this ergd does not know, an enum number outside the
+        # schema, two values out of range and a cross-field rule.
+        d = spec_json()
+        d["domain"]["nx"] = -5
+        d["wind"]["constant"]["direction_deg"] = 400
+        d["model"]["max_hop_m"] = 40
+        spec = spec_of(d)
+        spec.MergeFromString(b"\xba\x3e\x03red")   # field 999 (a string)
+        spec.run.MergeFromString(b"\x98\x06\x01")  # run's field 99 (a varint)
+        spec.transport = 7
+        with self.assertRaises(grpc.RpcError) as e:
+            self.ergd.stub.SubmitJob(S.SubmitJobRequest(spec=spec), metadata=md(ALICE),
+                                     timeout=30)
+        self.assertEqual(e.exception.code(), grpc.StatusCode.INVALID_ARGUMENT)
+        lines = e.exception.details().split("\n")
+        self.assertEqual(len(lines), 6, lines)
+        want = ["spec: unknown field number 999", "run: unknown field number 99",
+                "transport = 7 is not a known value; allowed EXPECTED, STOCHASTIC",
+                "domain.nx = -5 is out of range; allowed [8, 1048576] cells",
+                "wind.constant.direction_deg = 400 is out of range",
+                "model.max_hop_m = 40 m"]
+        for w in want:
+            self.assertTrue(any(w in line for line in lines), (w, lines))
+
     def test_bad_specs_are_invalid_argument_naming_the_field(self):
         bad = spec_json()
         bad["domain"]["nx"] = 3

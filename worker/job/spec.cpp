@@ -1,16 +1,21 @@
 #include "job/spec.h"
 
 #include <google/protobuf/descriptor.h>
+#include <google/protobuf/struct.pb.h>
 #include <google/protobuf/util/json_util.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <set>
 #include <sstream>
+#include <system_error>
 
 #include "io/io.h"
 #include "job/map_file.h"
@@ -159,7 +164,57 @@ std::string enum_names(const pb::EnumDescriptor* e) {
   return t;
 }
 
-void validate_rec(const pb::Message& m, const std::string& path, std::vector<std::string>& out) {
+// Fields a message carries that this schema does not know (a binary
+// message from a newer client: gRPC keeps them as unknown fields).
+void unknown_fields_rec(const pb::Message& m, const std::string& path,
+                        std::vector<std::string>& out) {
+  const pb::UnknownFieldSet& u = m.GetReflection()->GetUnknownFields(m);
+  for (int k = 0; k < u.field_count(); ++k)
+    out.push_back((path.empty() ? std::string("spec") : path) + ": unknown field number " +
+                  std::to_string(u.field(k).number()) + " (not in " +
+                  m.GetDescriptor()->full_name() + " of this erg)");
+  const pb::Descriptor* d = m.GetDescriptor();
+  const pb::Reflection* r = m.GetReflection();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const pb::FieldDescriptor* f = d->field(i);
+    if (f->cpp_type() != pb::FieldDescriptor::CPPTYPE_MESSAGE) continue;
+    const std::string name = path.empty() ? f->name() : path + "." + f->name();
+    if (f->is_repeated()) {
+      for (int k = 0; k < r->FieldSize(m, f); ++k)
+        unknown_fields_rec(r->GetRepeatedMessage(m, f, k), name + "[" + std::to_string(k) + "]",
+                           out);
+    } else if (r->HasField(m, f)) {
+      unknown_fields_rec(r->GetMessage(m, f), name, out);
+    }
+  }
+}
+
+// Whether v lies in the field's range.
+bool in_range(const erg::v1::FieldSpec& s, double v) {
+  return std::isfinite(v) && !(s.has_min() && (s.min_exclusive() ? v <= s.min() : v < s.min())) &&
+         !(s.has_max() && (s.max_exclusive() ? v >= s.max() : v > s.max()));
+}
+
+// A value in the field's range: its default, else the bound it crossed
+// (moved inside for an exclusive bound), for the checks that span several
+// fields to run on (their messages about this field are then dropped).
+double in_range_value(const pb::FieldDescriptor* f, double v) {
+  const auto& s = spec_of(f);
+  if (s.has_default_value() && in_range(s, s.default_value())) return s.default_value();
+  const bool integral = f->cpp_type() != pb::FieldDescriptor::CPPTYPE_DOUBLE &&
+                        f->cpp_type() != pb::FieldDescriptor::CPPTYPE_FLOAT;
+  auto inside = [&](double bound, bool exclusive, double towards) {
+    if (!exclusive) return bound;
+    return integral ? bound + (towards > bound ? 1 : -1) : std::nextafter(bound, towards);
+  };
+  const double lo = s.has_min() ? s.min() : -1e300, hi = s.has_max() ? s.max() : 1e300;
+  if (!std::isfinite(v) || (s.has_min() && v <= s.min()))
+    return s.has_min() ? inside(s.min(), s.min_exclusive(), hi) : (s.has_max() ? hi : 0);
+  return inside(s.max(), s.max_exclusive(), lo);
+}
+
+void validate_rec(const pb::Message& m, const std::string& path, std::vector<std::string>& out,
+                  pb::Message* repaired = nullptr) {
   const pb::Descriptor* d = m.GetDescriptor();
   const pb::Reflection* r = m.GetReflection();
   for (int i = 0; i < d->field_count(); ++i) {
@@ -168,9 +223,12 @@ void validate_rec(const pb::Message& m, const std::string& path, std::vector<std
     if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE) {
       if (f->is_repeated()) {
         for (int k = 0; k < r->FieldSize(m, f); ++k)
-          validate_rec(r->GetRepeatedMessage(m, f, k), name + "[" + std::to_string(k) + "]", out);
+          validate_rec(r->GetRepeatedMessage(m, f, k), name + "[" + std::to_string(k) + "]", out,
+                       repaired ? repaired->GetReflection()->MutableRepeatedMessage(repaired, f, k)
+                                : nullptr);
       } else if (r->HasField(m, f)) {
-        validate_rec(r->GetMessage(m, f), name, out);
+        validate_rec(r->GetMessage(m, f), name, out,
+                     repaired ? repaired->GetReflection()->MutableMessage(repaired, f) : nullptr);
       }
       continue;
     }
@@ -178,25 +236,187 @@ void validate_rec(const pb::Message& m, const std::string& path, std::vector<std
       // JSON may give an enum as a number; proto3 keeps numbers it has no
       // name for, which no part of erg knows how to run.
       const int v = r->GetEnumValue(m, f);
-      if (f->enum_type()->FindValueByNumber(v) == nullptr)
+      if (f->enum_type()->FindValueByNumber(v) == nullptr) {
         out.push_back(name + " = " + std::to_string(v) + " is not a known value; allowed " +
                       enum_names(f->enum_type()));
+        if (repaired) repaired->GetReflection()->SetEnumValue(repaired, f, 0);
+      }
       continue;
     }
     if (f->is_repeated() || !is_numeric(f)) continue;
     const auto& s = spec_of(f);
     const bool present = !f->has_presence() || r->HasField(m, f);
     if (!present) {
-      if (s.required())
+      if (s.required()) {
         out.push_back(name + " is required" + (s.doc().empty() ? "" : " (" + s.doc() + ")") +
                       "; allowed " + range_text(s));
+        if (repaired) set_default(*repaired, f, in_range_value(f, NAN));
+      }
       continue;
     }
     const double v = get_number(m, f);
-    const bool bad = !std::isfinite(v) ||
-                     (s.has_min() && (s.min_exclusive() ? v <= s.min() : v < s.min())) ||
-                     (s.has_max() && (s.max_exclusive() ? v >= s.max() : v > s.max()));
-    if (bad) out.push_back(name + " = " + num(v) + " is out of range; allowed " + range_text(s));
+    if (!in_range(s, v)) {
+      out.push_back(name + " = " + num(v) + " is out of range; allowed " + range_text(s));
+      if (repaired) set_default(*repaired, f, in_range_value(f, v));
+    }
+  }
+}
+
+// ---- JSON that protobuf's parser refuses: every problem, named --------------
+
+// Levenshtein distance, for "did you mean".
+size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diag = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] != b[j - 1] ? 1 : 0)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
+// "unknown field; did you mean 'snapshot_every'?" or the fields there are.
+std::string unknown_field_text(const pb::Descriptor* d, const std::string& key) {
+  std::string best, all;
+  size_t best_d = 4;  // at most 3 edits
+  for (int i = 0; i < d->field_count(); ++i) {
+    const std::string& n = d->field(i)->name();
+    all.append(all.empty() ? "" : ", ").append(n);
+    if (const size_t e = edit_distance(key, n); e < best_d) {
+      best_d = e;
+      best = n;
+    }
+  }
+  if (!best.empty()) return "unknown field; did you mean '" + best + "'?";
+  if (d->field_count() <= 12) return "unknown field; allowed " + all;
+  return "unknown field (erg params lists every field)";
+}
+
+std::string json_text(const pb::Value& v) {
+  std::string t;
+  (void)pb::util::MessageToJsonString(v, &t);
+  return t.size() > 40 ? t.substr(0, 40) + "..." : t;
+}
+
+bool json_number(const pb::Value& v, double* out) {
+  if (v.kind_case() == pb::Value::kNumberValue) {
+    *out = v.number_value();
+    return true;
+  }
+  if (v.kind_case() != pb::Value::kStringValue) return false;
+  // Protobuf's JSON takes numbers as strings too ("384", "NaN", "Infinity").
+  const std::string& t = v.string_value();
+  if (t == "NaN" || t == "Infinity" || t == "-Infinity") {
+    *out = t == "NaN" ? NAN : (t[0] == '-' ? -INFINITY : INFINITY);
+    return true;
+  }
+  char* end = nullptr;
+  *out = std::strtod(t.c_str(), &end);
+  return !t.empty() && end == t.c_str() + t.size();
+}
+
+// Whether one (non-repeated) value fits field f; a problem for it if not.
+bool json_value_matches(const pb::Value& v, const pb::FieldDescriptor* f, const std::string& name,
+                        std::vector<std::string>& problems);
+
+// Checks the JSON object `v` against message type d, removing (and naming
+// in `problems`) every key it cannot hold. False when v is no object.
+bool json_matches(pb::Value& v, const pb::Descriptor* d, const std::string& path,
+                  std::vector<std::string>& problems) {
+  if (v.kind_case() != pb::Value::kStructValue) return false;
+  auto& fields = *v.mutable_struct_value()->mutable_fields();
+  std::vector<std::string> keys;
+  for (const auto& [k, _] : fields) keys.push_back(k);
+  std::sort(keys.begin(), keys.end());
+  std::map<const pb::OneofDescriptor*, std::string> oneof_taken;
+  for (const std::string& key : keys) {
+    pb::Value& value = fields[key];
+    const std::string name = path.empty() ? key : path + "." + key;
+    const pb::FieldDescriptor* f = d->FindFieldByName(key);
+    if (!f) f = d->FindFieldByCamelcaseName(key);
+    bool keep = true;
+    const pb::OneofDescriptor* oneof = f ? f->real_containing_oneof() : nullptr;
+    if (!f) {
+      problems.push_back(name + ": " + unknown_field_text(d, key));
+      keep = false;
+    } else if (oneof && oneof_taken.count(oneof)) {
+      problems.push_back((path.empty() ? std::string("spec") : path) + ": " + oneof_taken[oneof] +
+                         " and " + key + " exclude each other; give one of them");
+      keep = false;
+    } else if (value.kind_case() == pb::Value::kNullValue) {
+      // null: the field is absent.
+    } else if (f->is_repeated()) {
+      if (value.kind_case() != pb::Value::kListValue) {
+        problems.push_back(name + " = " + json_text(value) + " is not a list");
+        keep = false;
+      } else {
+        auto& list = *value.mutable_list_value()->mutable_values();
+        for (int k = 0; k < list.size(); ++k) {
+          const std::string item = name + "[" + std::to_string(k) + "]";
+          if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE) {
+            if (!json_matches(list[k], f->message_type(), item, problems)) {
+              problems.push_back(item + " = " + json_text(list[k]) + " is not an object");
+              list[k].mutable_struct_value();  // an empty one, to keep the indices
+            }
+          } else if (!json_value_matches(list[k], f, item, problems)) {
+            keep = false;  // the list cannot be parsed without it
+          }
+        }
+      }
+    } else if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE) {
+      if (!json_matches(value, f->message_type(), name, problems)) {
+        problems.push_back(name + " = " + json_text(value) + " is not an object");
+        keep = false;
+      }
+    } else {
+      keep = json_value_matches(value, f, name, problems);
+    }
+    if (!keep)
+      fields.erase(key);
+    else if (oneof)
+      oneof_taken[oneof] = key;
+  }
+  return true;
+}
+
+bool json_value_matches(const pb::Value& v, const pb::FieldDescriptor* f, const std::string& name,
+                        std::vector<std::string>& problems) {
+  double x = 0;
+  switch (f->cpp_type()) {
+    case pb::FieldDescriptor::CPPTYPE_ENUM: {
+      if (v.kind_case() == pb::Value::kNumberValue) return true;  // checked by validate
+      std::string given = v.kind_case() == pb::Value::kStringValue ? v.string_value() : "";
+      std::transform(given.begin(), given.end(), given.begin(),
+                     [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+      if (!given.empty() && f->enum_type()->FindValueByName(given)) return true;
+      problems.push_back(name + " = " + json_text(v) + " is not a known value; allowed " +
+                         enum_names(f->enum_type()));
+      return false;
+    }
+    case pb::FieldDescriptor::CPPTYPE_BOOL:
+      if (v.kind_case() == pb::Value::kBoolValue) return true;
+      problems.push_back(name + " = " + json_text(v) + " is not true or false");
+      return false;
+    case pb::FieldDescriptor::CPPTYPE_STRING:
+      if (v.kind_case() == pb::Value::kStringValue) return true;
+      problems.push_back(name + " = " + json_text(v) + " is not a string");
+      return false;
+    case pb::FieldDescriptor::CPPTYPE_DOUBLE:
+    case pb::FieldDescriptor::CPPTYPE_FLOAT:
+      if (json_number(v, &x)) return true;
+      problems.push_back(name + " = " + json_text(v) + " is not a number; allowed " +
+                         range_text(spec_of(f)));
+      return false;
+    default:  // integers
+      if (json_number(v, &x) && std::isfinite(x) && x == std::floor(x)) return true;
+      problems.push_back(name + " = " + json_text(v) + " is not a whole number; allowed " +
+                         range_text(spec_of(f)));
+      return false;
   }
 }
 
@@ -390,15 +610,42 @@ SpecError::SpecError(std::vector<std::string> problems)
     : std::runtime_error(join_lines(problems)), problems_(std::move(problems)) {}
 
 JobSpec parse_json(const std::string& text, const std::string& origin) {
+  std::vector<std::string> problems;
+  JobSpec spec = parse_json_collect(text, problems);
+  if (!problems.empty()) {
+    for (auto& p : problems) p = origin + ": " + p;
+    throw SpecError(problems);
+  }
+  return spec;
+}
+
+JobSpec parse_json_collect(const std::string& text, std::vector<std::string>& problems) {
   JobSpec spec;
   pb::util::JsonParseOptions opt;
   opt.ignore_unknown_fields = false;
   opt.case_insensitive_enum_parsing = true;
-  auto st = pb::util::JsonStringToMessage(text, &spec, opt);
-  if (!st.ok()) {
-    std::string msg(st.message());
-    throw SpecError({origin + ": not a valid job spec: " + msg});
+  // A good job is parsed exactly as protobuf parses it; only a bad one is
+  // walked, to name every problem rather than the parser's first.
+  if (pb::util::JsonStringToMessage(text, &spec, opt).ok()) return spec;
+  spec.Clear();
+  pb::Value tree;
+  if (auto st = pb::util::JsonStringToMessage(text, &tree); !st.ok()) {
+    problems.push_back("not a valid job spec: " + std::string(st.message()));
+    return spec;
   }
+  const size_t before = problems.size();
+  if (!json_matches(tree, JobSpec::descriptor(), "", problems)) {
+    problems.push_back("a job spec is a JSON object");
+    return spec;
+  }
+  std::string cleaned;
+  (void)pb::util::MessageToJsonString(tree, &cleaned);
+  if (auto st = pb::util::JsonStringToMessage(cleaned, &spec, opt); !st.ok()) {
+    // Something the walk does not know about: the parser's own words.
+    problems.push_back("not a valid job spec: " + std::string(st.message()));
+    spec.Clear();
+  }
+  if (problems.size() == before) problems.push_back("not a valid job spec");
   return spec;
 }
 
@@ -418,11 +665,12 @@ void apply_defaults(JobSpec& spec) {
   if (spec.transport() == JobSpec::TRANSPORT_UNSPECIFIED) spec.set_transport(JobSpec::EXPECTED);
 }
 
-std::vector<std::string> validate(const JobSpec& spec, const std::string& base_dir) {
-  std::vector<std::string> out;
-  validate_rec(spec, "", out);
-  if (!out.empty()) return out;  // later checks assume the fields are in range
+namespace {
 
+// The rules that span several fields (and the map files); they assume every
+// field is in range.
+std::vector<std::string> cross_field_problems(const JobSpec& spec, const std::string& base_dir) {
+  std::vector<std::string> out;
   const auto& d = spec.domain();
   const auto& m = spec.model();
   const double l = d.cell_size_m();
@@ -566,6 +814,29 @@ std::vector<std::string> validate(const JobSpec& spec, const std::string& base_d
   return out;
 }
 
+}  // namespace
+
+std::vector<std::string> validate(const JobSpec& spec, const std::string& base_dir) {
+  std::vector<std::string> out;
+  unknown_fields_rec(spec, "", out);
+  // Every field's own problems, then the cross-field rules on a copy whose
+  // bad fields are put in range (so that they run at all); a rule's message
+  // that names a field already reported would only repeat it, and is dropped.
+  JobSpec repaired = spec;
+  repaired.DiscardUnknownFields();
+  std::vector<std::string> own;
+  validate_rec(spec, "", own, &repaired);
+  out.insert(out.end(), own.begin(), own.end());
+  for (const std::string& p : cross_field_problems(repaired, base_dir)) {
+    const bool repeats = std::any_of(own.begin(), own.end(), [&](const std::string& o) {
+      const std::string field = o.substr(0, o.find_first_of(" "));
+      return p.find(field) != std::string::npos;
+    });
+    if (!repeats) out.push_back(p);
+  }
+  return out;
+}
+
 std::string base_dir_of(const std::string& job_path) {
   fs::path p(job_path);
   return p.has_parent_path() ? p.parent_path().string() : std::string(".");
@@ -579,12 +850,28 @@ std::string resolve_path(const std::string& path, const std::string& base_dir) {
 
 JobSpec load_job_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw SpecError({path + ": cannot open the job file"});
+  if (!in) {
+    const int err = errno;
+    throw SpecError({path + ": cannot open the job file: " + std::generic_category().message(err)});
+  }
   std::stringstream ss;
   ss << in.rdbuf();
-  JobSpec spec = parse_json(ss.str(), path);
+  // The problems of parsing and of validation, in one list.
+  std::vector<std::string> problems;
+  JobSpec spec = parse_json_collect(ss.str(), problems);
+  const bool parsed = problems.empty() || spec.ByteSizeLong() > 0;
   apply_defaults(spec);
-  auto problems = validate(spec, base_dir_of(path));
+  if (parsed) {
+    auto more = validate(spec, base_dir_of(path));
+    // A field removed as unparseable is reported once, not again as missing.
+    for (auto& p : more) {
+      const std::string field = p.substr(0, p.find_first_of(" :"));
+      const bool repeats = std::any_of(problems.begin(), problems.end(), [&](const auto& q) {
+        return q.compare(0, field.size() + 1, field + " ") == 0;
+      });
+      if (!repeats) problems.push_back(std::move(p));
+    }
+  }
   if (!problems.empty()) {
     for (auto& p : problems) p = path + ": " + p;
     throw SpecError(problems);
@@ -598,6 +885,51 @@ std::string to_json(const JobSpec& spec) {
   opt.add_whitespace = true;
   opt.preserve_proto_field_names = true;
   (void)pb::util::MessageToJsonString(spec, &out, opt);
+  return out;
+}
+
+namespace {
+
+// The names of every 64-bit integer field in d and the messages under it.
+void int64_names(const pb::Descriptor* d, std::set<std::string>& names,
+                 std::set<const pb::Descriptor*>& seen) {
+  if (!seen.insert(d).second) return;
+  for (int i = 0; i < d->field_count(); ++i) {
+    const pb::FieldDescriptor* f = d->field(i);
+    if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_INT64 ||
+        f->cpp_type() == pb::FieldDescriptor::CPPTYPE_UINT64)
+      names.insert(f->name());
+    if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE)
+      int64_names(f->message_type(), names, seen);
+  }
+}
+
+}  // namespace
+
+std::string to_readable_json(const JobSpec& spec) {
+  static const std::set<std::string> names = [] {
+    std::set<std::string> n;
+    std::set<const pb::Descriptor*> seen;
+    int64_names(JobSpec::descriptor(), n, seen);
+    return n;
+  }();
+  // to_json writes one field a line: `  "nx": "384",` becomes `  "nx": 384,`.
+  std::istringstream in(to_json(spec));
+  std::string out;
+  for (std::string line; std::getline(in, line);) {
+    const size_t q0 = line.find('"');
+    const size_t q1 = q0 == std::string::npos ? q0 : line.find('"', q0 + 1);
+    if (q1 != std::string::npos && line.compare(q1, 4, "\": \"") == 0 &&
+        names.count(line.substr(q0 + 1, q1 - q0 - 1))) {
+      const size_t v0 = q1 + 4, v1 = line.find('"', v0);
+      const std::string v = line.substr(v0, v1 - v0);
+      if (v1 != std::string::npos && !v.empty() &&
+          v.find_first_not_of("-0123456789") == std::string::npos)
+        line = line.substr(0, v0 - 1) + v + line.substr(v1 + 1);
+    }
+    out += line + "\n";
+  }
+  if (!out.empty()) out.pop_back();
   return out;
 }
 

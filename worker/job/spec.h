@@ -32,6 +32,11 @@ class SpecError : public std::runtime_error {
 // fields and unknown enum names.
 JobSpec parse_json(const std::string& text, const std::string& origin = "job");
 
+// Same, collecting every problem (unknown fields with the closest name, enum
+// values not in the schema with the allowed ones, values of the wrong type)
+// instead of throwing: the spec returned holds what could be parsed.
+JobSpec parse_json_collect(const std::string& text, std::vector<std::string>& problems);
+
 // Fills every absent field that has a default (recursively). Idempotent.
 void apply_defaults(JobSpec& spec);
 
@@ -48,6 +53,10 @@ std::string base_dir_of(const std::string& job_path);
 
 // Canonical JSON (proto field names, defaults included, indented).
 std::string to_json(const JobSpec& spec);
+
+// The same for people to read (erg check): 64-bit integers as JSON numbers
+// (protobuf's JSON writes them as strings); parses back to the same spec.
+std::string to_readable_json(const JobSpec& spec);
 
 // Overrides shared by `erg run`, `erg submit` and erg-worker.
 struct Overrides {
