@@ -19,6 +19,7 @@
 #include "dist/decomposition.h"
 #include "io/atomic_file.h"
 #include "job/worker_event.h"
+#include "sim/moving_rate.h"
 #include "sim/resume_point.h"
 #include "sim/tiling.h"
 
@@ -438,8 +439,9 @@ class JobRun {
       write_due_files(s, last);
       const auto now = Clock::now();
       const StepOutcome next = bcast(ctx_.root() ? decide(s, last, now) : StepOutcome{}, ctx_);
-      const double rate = static_cast<double>(s - first_) / std::max(seconds(now - t0), 1e-9);
-      const double eta = static_cast<double>(steps_ - s) / std::max(rate, 1e-9);
+      moving_rate_.add(seconds(now - t0), s);
+      const double rate = moving_rate_.steps_per_s();
+      const double eta = moving_rate_.eta_s(steps_);
       if (next.report) report_progress(s, rate, eta, now);
       log_progress(s, last, rate, eta, now);
       if (next.steer) apply_steering();
@@ -640,7 +642,8 @@ class JobRun {
   bool steering_ = false, log_steering_ = false;
   std::vector<SteerFile> steered_;  // rank 0: taken, not yet applied
   Clock::time_point last_report_, last_log_;
-  std::int64_t first_ = 0;  // the loop's first step
+  std::int64_t first_ = 0;            // the loop's first step
+  erg::sim::MovingRate moving_rate_;  // steps/s and ETA of the progress events
   dist::Exchange::Stats stats0_{};
 };
 
