@@ -33,7 +33,7 @@ packages=(
   python3-scipy python3-matplotlib
   # the Slurm launcher and its test cluster (slurmctld, slurmd, munge)
   slurmctld slurmd slurm-client munge
-  # systemd-analyze verifies deploy/systemd/ergd.service
+  # systemd-analyze verifies the installed ergd.service
   systemd
   # the Python gRPC client of the service tests, and the dashboard test
   python3-grpcio python3-protobuf chromium openssl

@@ -1,4 +1,5 @@
 // ergd: the erg job service (proto/erg/v1/service.proto).
+//   ergd token new TENANT [--operator] [--tokens FILE]
 //   ergd --listen ADDR --http ADDR --data DIR --tokens FILE
 //        [--max-running N] [--max-ranks P] [--tls-cert F --tls-key F]
 //        [--cancel-grace S] [--max-job-disk BYTES] [--tenant-cell-steps N]
@@ -24,9 +25,11 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "api/job_service.h"
 #include "api/malformed_requests.h"
+#include "auth/token_cmd.h"
 #include "auth/tokens.h"
 #include "http/http_api.h"
 #include "launch/local_launcher.h"
@@ -41,7 +44,8 @@ namespace {
 
 void usage() {
   std::cerr
-      << "usage: ergd --listen HOST:PORT --http HOST:PORT --data DIR --tokens FILE\n"
+      << "usage: ergd token new TENANT [--operator] [--tokens FILE]   (a new token)\n"
+         "       ergd --listen HOST:PORT --http HOST:PORT --data DIR --tokens FILE\n"
          "            [--max-running N (2)] [--max-ranks P (cores)]\n"
          "            [--tls-cert FILE --tls-key FILE] [--cancel-grace SECONDS (30)]\n"
          "            [--max-job-disk BYTES (0: none)] [--tenant-cell-steps N (0: none)]\n"
@@ -324,6 +328,8 @@ int serve(Options& o, const sigset_t& sigs) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc >= 2 && std::string(argv[1]) == "token")
+    return erg::server::token_command(std::vector<std::string>(argv + 2, argv + argc));
   Options o;
   try {
     o = parse_flags(argc, argv);

@@ -1,24 +1,36 @@
 """deploy/: the systemd unit passes `systemd-analyze verify` (and a broken
 copy does not: the check can fail), its example settings are flags ergd
-accepts, and the Slurm script templates are valid bash."""
+accepts, and the Slurm script templates are valid bash. `cmake --install
+--prefix P` installs the programs, a unit whose ExecStart is P/bin/ergd
+(verified), the examples and README, and the installed erg runs a job.
+`ergd token new` makes tokens that a running ergd accepts."""
 import os
+import re
 import shlex
+import socket
+import stat
 import shutil
 import signal
 import subprocess
 import tempfile
 import time
 import unittest
+import urllib.error
+import urllib.request
 
 ROOT = os.path.join(os.path.dirname(__file__), "..", "..")
 DEPLOY = os.path.join(ROOT, "deploy")
 ERGD = os.path.join(os.environ["ERG_BIN_DIR"], "ergd")
+BUILD = os.path.dirname(os.environ["ERG_BIN_DIR"])
 ANALYZE = shutil.which("systemd-analyze")
 
 
 def unit_text(ergd_path):
-    with open(os.path.join(DEPLOY, "systemd", "ergd.service")) as f:
-        return f.read().replace("/usr/local/bin/ergd", ergd_path)
+    """The unit template with ExecStart at ergd_path, as `cmake --install` writes it."""
+    with open(os.path.join(DEPLOY, "systemd", "ergd.service.in")) as f:
+        text = f.read()
+    bindir, name = os.path.split(ergd_path)
+    return text.replace("@ERGD_BINDIR@/ergd", os.path.join(bindir, name))
 
 
 class Deploy(unittest.TestCase):
@@ -76,6 +88,105 @@ class Deploy(unittest.TestCase):
             r = subprocess.run(["bash", "-n", os.path.join(DEPLOY, "slurm", name)],
                                capture_output=True, text=True)
             self.assertEqual(r.returncode, 0, name + ": " + r.stderr)
+
+    def test_install_into_a_prefix(self):
+        prefix = os.path.join(self.tmp, "prefix")
+        r = subprocess.run(["cmake", "--install", BUILD, "--prefix", prefix], capture_output=True,
+                           text=True)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        for name in ("erg", "erg-worker", "ergd", "erg-bench"):
+            self.assertTrue(os.access(os.path.join(prefix, "bin", name), os.X_OK), name)
+        for rel in ("share/erg/examples/barchans.json", "share/erg/systemd/ergd.env",
+                    "share/erg/slurm/ergd-job.sbatch", "share/doc/erg/README.md",
+                    "share/doc/erg/LICENSE", "share/doc/erg/NOTICE"):
+            self.assertTrue(os.path.isfile(os.path.join(prefix, rel)), rel)
+        with open(os.path.join(prefix, "lib/systemd/system/ergd.service")) as f:
+            unit = f.read()
+        self.assertNotIn("@ERGD_BINDIR@", unit)
+        self.assertIn("ExecStart=" + os.path.join(prefix, "bin", "ergd") + " ", unit)
+        if ANALYZE:
+            r = self.verify(unit)
+            self.assertEqual(r.returncode, 0, r.stderr)
+        # The installed erg finds the installed erg-worker next to it.
+        out = os.path.join(self.tmp, "run")
+        r = subprocess.run([os.path.join(prefix, "bin", "erg"), "run",
+                            os.path.join(prefix, "share/erg/examples/barchans.json"), "--out", out,
+                            "--steps", "3"], capture_output=True, text=True, timeout=300)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertTrue(os.path.isfile(os.path.join(out, "snapshots", "step_00000003.h5")))
+
+    def test_token_new_appends_a_random_token(self):
+        tokens = os.path.join(self.tmp, "tokens")
+        made = []
+        for tenant in ("dunelab", "ops"):
+            r = subprocess.run([ERGD, "token", "new", tenant, "--tokens", tokens]
+                               + (["--operator"] if tenant == "ops" else []),
+                               capture_output=True, text=True)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertRegex(r.stdout, r"^[0-9a-f]{48}\n$")
+            made.append(r.stdout.strip())
+        self.assertNotEqual(made[0], made[1])
+        self.assertEqual(stat.S_IMODE(os.stat(tokens).st_mode), 0o600)
+        with open(tokens) as f:
+            lines = [l.split() for l in f if l.strip() and not l.startswith("#")]
+        self.assertEqual(lines, [[made[0], "dunelab"], [made[1], "ops", "operator"]])
+        # An existing file keeps its mode (root:ergd 0640 stays readable by ergd).
+        os.chmod(tokens, 0o640)
+        r = subprocess.run([ERGD, "token", "new", "third", "--tokens", tokens],
+                           capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(stat.S_IMODE(os.stat(tokens).st_mode), 0o640)
+        self.assertEqual([n for n in os.listdir(self.tmp) if n != "tokens"], [])  # no temporary
+        # Bad arguments name what is wrong.
+        for args, says in ((["new"], "TENANT is missing"),
+                           (["new", "two words"], "is not valid"),
+                           (["new", "x", "--bogus"], "unknown option '--bogus'"),
+                           (["old", "x"], "unknown subcommand 'old'")):
+            r = subprocess.run([ERGD, "token"] + args + ["--tokens", tokens],
+                               capture_output=True, text=True)
+            self.assertEqual(r.returncode, 2, args)
+            self.assertIn(says, r.stderr)
+        r = subprocess.run([ERGD, "token", "new", "x", "--tokens",
+                            os.path.join(self.tmp, "missing", "tokens")], capture_output=True,
+                           text=True)
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("No such file or directory", r.stderr)
+
+    def test_a_running_ergd_accepts_a_new_token(self):
+        tokens = os.path.join(self.tmp, "tokens")
+        first = subprocess.run([ERGD, "token", "new", "a", "--tokens", tokens],
+                               capture_output=True, text=True, check=True).stdout.strip()
+        with socket.socket() as sock:
+            sock.bind(("127.0.0.1", 0))
+            port = sock.getsockname()[1]
+        p = subprocess.Popen([ERGD, "--listen", "127.0.0.1:0", "--http", f"127.0.0.1:{port}",
+                              "--data", os.path.join(self.tmp, "data"), "--tokens", tokens],
+                             stderr=subprocess.PIPE, text=True)
+        try:
+            for line in p.stderr:
+                if "serving" in line:
+                    break
+            second = subprocess.run([ERGD, "token", "new", "b", "--tokens", tokens],
+                                    capture_output=True, text=True, check=True).stdout.strip()
+            def status(token):
+                req = urllib.request.Request(f"http://127.0.0.1:{port}/api/jobs",
+                                             headers={"Authorization": "Bearer " + token})
+                try:
+                    with urllib.request.urlopen(req, timeout=5) as resp:
+                        return resp.status
+                except urllib.error.HTTPError as e:
+                    return e.code
+
+            # ergd re-reads the file within a second of the change.
+            deadline = time.monotonic() + 5
+            while status(second) != 200 and time.monotonic() < deadline:
+                time.sleep(0.1)
+            self.assertEqual(status(second), 200)
+            self.assertEqual(status(first), 200)
+            self.assertEqual(status("0" * 48), 401)
+        finally:
+            p.send_signal(signal.SIGTERM)
+            p.communicate(timeout=60)
 
 
 if __name__ == "__main__":
