@@ -4,7 +4,10 @@ time the run really took to finish from there (worker/sim/moving_rate.h).
 
 The job is a sand sheet, whose steps all cost about the same, sized by a
 short first run to take about 15 s here; the run is alone on the machine
-(RUN_SERIAL), since other processes on the cores change its rate."""
+(RUN_SERIAL), since other processes on the cores change its rate. On a
+machine that other users share, their load changes the rate mid-run too:
+the run is tried up to three times, and one run that meets the bound at
+every progress event passes (each miss is printed)."""
 import json
 import os
 import shutil
@@ -57,19 +60,31 @@ class Eta(unittest.TestCase):
         (ta, sa, _), (tb, sb, _) = probe[0], probe[-1]
         rate = (sb - sa) / max(tb - ta, 1e-3)
         steps = max(200, int(15 * rate))
-        total, events = self.run_job(steps, "run")
+        misses = []
+        for attempt in range(3):
+            miss = self.check_run(steps, f"run{attempt}")
+            if miss is None:
+                return
+            print("attempt", attempt + 1, "missed:", miss)
+            misses.append(miss)
+        self.fail("; ".join(misses))
+
+    def check_run(self, steps, name):
+        """None when every ETA from 5% of the run on is within 25%, else the first miss."""
+        total, events = self.run_job(steps, name)
         checked = 0
         for t, step, eta in events:
             if t < 0.05 * total or step >= steps:
                 continue
             truth = total - t
             # 0.3 s: the process's exit after the last step, and timer granularity.
-            self.assertLessEqual(abs(eta - truth), 0.25 * truth + 0.3,
-                                 f"at {t:.1f} s of {total:.1f} s (step {step} of {steps}): ETA "
-                                 f"{eta:.1f} s, the run took {truth:.1f} s more")
+            if abs(eta - truth) > 0.25 * truth + 0.3:
+                return (f"at {t:.1f} s of {total:.1f} s (step {step} of {steps}): ETA "
+                        f"{eta:.1f} s, the run took {truth:.1f} s more")
             checked += 1
         self.assertGreater(checked, 20, "too few progress events to judge")
         print(f"{steps} steps in {total:.1f} s; {checked} ETAs within 25%")
+        return None
 
 
 if __name__ == "__main__":
