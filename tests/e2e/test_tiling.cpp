@@ -276,6 +276,32 @@ TEST(Tiling, SettledTilesWaitForASpreadingColumn) {
 // iteration of the first steps, so N = 12 and N = 48 both use the second,
 // wider round; refills every 4 iterations would send several times the
 // messages at N = 48.
+// halo_messages_per_step of the worker's done event (the most any rank sent).
+double halo_messages_per_step(const std::string& output) {
+  std::istringstream lines(output);
+  for (std::string line; std::getline(lines, line);)
+    if (const auto ev = erg::job::parse_worker_event(line); ev && ev->has_done())
+      return static_cast<double>(ev->done().halo_messages_per_step());
+  ADD_FAILURE() << "no done event in\n" << output;
+  return 0.0;
+}
+
+// The exchanges of a step are the ones Simulation::step lists: on a terrain
+// where nothing avalanches, the heights (before the shadow), the landed sand
+// (summed back) and sand, bedrock and impact strengths together (before
+// reptation), each one message per neighbour and phase: 3 x 4 per rank and
+// step, where one message per field and exchange made 5 x 4.
+TEST(Tiling, AStepSendsOneMessagePerNeighbourForEachExchangeItLists) {
+  TempDir t("erg_tiling");
+  write(t / "flat.json", R"({"domain": {"nx": 192, "ny": 96, "cell_size_m": 1.0},
+ "layers": {"sand": {"constant": 1}}, "wind": {"constant": {"speed_mps": 6}},
+ "run": {"steps": 10, "snapshot_every": 0}})");
+  const Result r = run(
+      worker_on(2, (t / "flat.json") + " --out " + (t / "flat") + " --progress-fd 1 --threads 1"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(halo_messages_per_step(r.output), 12.0) << r.output;
+}
+
 TEST(Tiling, HaloMessagesDoNotGrowWithAvalancheIterations) {
   TempDir t("erg_tiling");
   auto messages = [&](int iterations) {
@@ -289,12 +315,7 @@ TEST(Tiling, HaloMessagesDoNotGrowWithAvalancheIterations) {
     const Result r = run(worker_on(
         2, (t / (name + ".json")) + " --out " + (t / name) + " --progress-fd 1 --threads 1"));
     EXPECT_EQ(r.code, 0) << r.output;
-    std::istringstream lines(r.output);
-    for (std::string line; std::getline(lines, line);)
-      if (const auto ev = erg::job::parse_worker_event(line); ev && ev->has_done())
-        return static_cast<double>(ev->done().halo_messages_per_step());
-    ADD_FAILURE() << "no done event in\n" << r.output;
-    return 0.0;
+    return halo_messages_per_step(r.output);
   };
   const double few = messages(12), many = messages(48);
   EXPECT_GT(few, 0);

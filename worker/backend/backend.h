@@ -4,7 +4,10 @@
 // math lives in stages/ and is shared by both backends.
 #pragma once
 
+#include <functional>
+#include <initializer_list>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -19,6 +22,16 @@
 
 namespace erg {
 
+// A field whose ghosts an exchange moves, and how wide (sim/simulation.h Halo).
+struct FieldGhosts {
+  fields::Id id;
+  int width;
+};
+using dist::GhostOp;
+// The ghosts of the listed fields, `width` cells wide, refilled between the
+// rounds of an avalanching stage (the step passes it: Simulation::step).
+using Refill = std::function<void(std::initializer_list<fields::Id> ids, int width)>;
+
 class Backend {
  public:
   virtual ~Backend() = default;
@@ -31,24 +44,43 @@ class Backend {
   // [ny][nx], in its unit (integer units as metres): what snapshots hold.
   virtual void download_owned(fields::Id id, std::vector<float>& out) = 0;
 
+  // --- ghosts ---------------------------------------------------------------
+  // Moves the ghosts of the listed fields through the exchange (a fill, the
+  // two halves of a split fill, or a sum back into the owners). The step
+  // decides which fields and when (Simulation::step); a backend only hands
+  // over its buffers (the GPU through host memory, or on the device when the
+  // tile is the whole torus). Stages never exchange.
+  virtual void ghosts(GhostOp op, std::span<const FieldGhosts> fields) = 0;
+  // The obstacles' ghosts were filled: refresh what depends on them.
+  virtual void obstacles_changed() = 0;
+
   // --- the stages, in pipeline order --------------------------------------
-  // Surface wind: venturi [P19 4.2] and multi-scale warping of the
-  // high-altitude wind a, at every owned cell.
+  // Heights b + s + o in metres at the owned cells, and the exact block sums
+  // of the coarse wind cells this tile owns.
+  virtual void heights() = 0;
+  // Surface wind: the coarse grid gathered and smoothed, venturi [P19 4.2]
+  // and multi-scale warping of the high-altitude wind a, at every owned cell
+  // (reads no ghosts).
   virtual void wind(Vec2 a) = 0;
   // Local wind primitives [P19 4.4]: adds their curl-of-psi perturbation to
   // the surface wind at every owned cell, batch after batch.
   virtual void perturb_wind(const std::vector<wind_primitives::Batch>& batches) = 0;
   // Wind shadow [N24 eq. 4].
   virtual void shadow() = 0;
-  // Lift, advection, deposition, bounces and abrasion; leaves the reptation
-  // strength for the next stage.
-  virtual void saltation(std::int64_t step) = 0;
+  // Saltation, first half: lift, and every airborne amount one hop downwind
+  // into the landed sand (owned cells and ghosts).
+  virtual void saltation_hop(std::int64_t step) = 0;
+  // Second half, once the landed ghosts are summed into their owners:
+  // deposition, bounces and abrasion; leaves the reptation strength for the
+  // next stage and the deposited sand for snapshots.
+  virtual void saltation_impact(std::int64_t step) = 0;
   // Reptation [N24 eqs. 6-8].
   virtual void reptation() = 0;
   // Sand avalanching [N24 eqs. 9-11]; returns the iterations that moved sand.
-  virtual int avalanche_sand() = 0;
+  // Rounds after the first refill their ghosts with `refill`.
+  virtual int avalanche_sand(const Refill& refill) = 0;
   // Bedrock avalanching at the bedrock repose angle.
-  virtual void avalanche_bedrock() = 0;
+  virtual void avalanche_bedrock(const Refill& refill) = 0;
 
   // --- timeline events ------------------------------------------------------
   // Returns the exact change of the layer's total (units).

@@ -16,6 +16,7 @@ namespace erg {
 template <class T>
 class Field {
  public:
+  using value_type = T;
   Field() = default;
   explicit Field(const TileGeom& g, T fill = T{}) { reset(g, fill); }
   Field(const Field& o) { *this = o; }

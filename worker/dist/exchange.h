@@ -7,10 +7,12 @@
 #pragma once
 
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "core/field.h"
 #include "core/units.h"
+#include "dist/ghosts.h"
 
 namespace erg::dist {
 
@@ -18,14 +20,10 @@ class Exchange {
  public:
   virtual ~Exchange() = default;
 
-  // Ghosts of width w get their owners' values.
-  virtual void fill(Field<units_t>& f, int w) = 0;
-  virtual void fill(Field<float>& f, int w) = 0;
-  // Ghosts of width w are added to their owners, then zeroed.
-  virtual void sum(Field<units_t>& f, int w) = 0;
-  // A fill split around work that does not read the ghosts (overlap).
-  virtual void begin_fill(Field<float>& f, int w) { fill(f, w); }
-  virtual void finish_fill(Field<float>& /*f*/, int /*w*/) {}
+  // The ghosts of every listed field, each as wide as listed: filled from
+  // their owners, or summed into them (GhostOp), in one message per
+  // neighbour and phase for all of them.
+  virtual void ghosts(GhostOp op, std::span<const Ghosts> fields) = 0;
 
   // Exact element-wise sums over all tiles, in place.
   virtual void sum_exact(std::vector<total_t>& v) = 0;
@@ -48,9 +46,7 @@ class Exchange {
 // One tile that is the whole torus: ghosts wrap onto its own cells.
 class PeriodicExchange final : public Exchange {
  public:
-  void fill(Field<units_t>& f, int w) override;
-  void fill(Field<float>& f, int w) override;
-  void sum(Field<units_t>& f, int w) override;
+  void ghosts(GhostOp op, std::span<const Ghosts> fields) override;
   void sum_exact(std::vector<total_t>&) override {}
   bool any(bool local) override { return local; }
   void gather_coarse(const std::vector<double>& mine, std::vector<double>& all) override {

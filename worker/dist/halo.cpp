@@ -6,6 +6,8 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
+#include <variant>
 
 namespace erg::dist {
 
@@ -32,48 +34,76 @@ void check(int rc, const char* call) {
                                     : "error code " + std::to_string(rc)));
 }
 
-// Local cells [x0, x1) x [y0, y1).
-struct Rect {
-  int x0, x1, y0, y1;
-};
-
 template <class T>
 std::size_t bytes_of(const Rect& r) {
   return static_cast<std::size_t>(r.x1 - r.x0) * static_cast<std::size_t>(r.y1 - r.y0) * sizeof(T);
 }
 
-template <class T>
-void pack(const Field<T>& f, const Rect& r, std::vector<char>& buf) {
-  const std::size_t row = static_cast<std::size_t>(r.x1 - r.x0) * sizeof(T);
-  buf.resize(bytes_of<T>(r));
+// Calls f(field, width) for every field of the list with a width > 0.
+template <class F>
+void each(std::span<const Ghosts> parts, F&& f) {
+  for (const Ghosts& g : parts)
+    if (g.width > 0) std::visit([&](auto* field) { f(*field, g.width); }, g.field);
+}
+
+// The bytes of every field's rectangle rect(w), one after the other.
+template <class RectOf>
+std::size_t bytes_of_all(std::span<const Ghosts> parts, RectOf rect) {
+  std::size_t n = 0;
+  each(parts, [&](auto& f, int w) {
+    n += bytes_of<typename std::decay_t<decltype(f)>::value_type>(rect(w));
+  });
+  return n;
+}
+
+template <class RectOf>
+void pack(std::span<const Ghosts> parts, RectOf rect, std::vector<char>& buf) {
+  buf.resize(bytes_of_all(parts, rect));
   char* p = buf.data();
-  for (int y = r.y0; y < r.y1; ++y, p += row) std::memcpy(p, &f(r.x0, y), row);
+  each(parts, [&](auto& f, int w) {
+    using T = typename std::decay_t<decltype(f)>::value_type;
+    const Rect r = rect(w);
+    const std::size_t row = static_cast<std::size_t>(r.x1 - r.x0) * sizeof(T);
+    for (int y = r.y0; y < r.y1; ++y, p += row) std::memcpy(p, &f(r.x0, y), row);
+  });
 }
 
-template <class T>
-void unpack_copy(Field<T>& f, const Rect& r, const std::vector<char>& buf) {
-  const std::size_t row = static_cast<std::size_t>(r.x1 - r.x0) * sizeof(T);
+template <class RectOf>
+void unpack_copy(std::span<const Ghosts> parts, RectOf rect, const std::vector<char>& buf) {
   const char* p = buf.data();
-  for (int y = r.y0; y < r.y1; ++y, p += row) std::memcpy(&f(r.x0, y), p, row);
+  each(parts, [&](auto& f, int w) {
+    using T = typename std::decay_t<decltype(f)>::value_type;
+    const Rect r = rect(w);
+    const std::size_t row = static_cast<std::size_t>(r.x1 - r.x0) * sizeof(T);
+    for (int y = r.y0; y < r.y1; ++y, p += row) std::memcpy(&f(r.x0, y), p, row);
+  });
 }
 
-template <class T>
-void unpack_add(Field<T>& f, const Rect& r, const std::vector<char>& buf) {
-  const int n = r.x1 - r.x0;
+template <class RectOf>
+void unpack_add(std::span<const Ghosts> parts, RectOf rect, const std::vector<char>& buf) {
   const char* p = buf.data();
-  for (int y = r.y0; y < r.y1; ++y) {
-    T* dst = &f(r.x0, y);
-    for (int x = 0; x < n; ++x, p += sizeof(T)) {
-      T v;
-      std::memcpy(&v, p, sizeof(T));
-      dst[x] += v;
+  each(parts, [&](auto& f, int w) {
+    using T = typename std::decay_t<decltype(f)>::value_type;
+    const Rect r = rect(w);
+    const int n = r.x1 - r.x0;
+    for (int y = r.y0; y < r.y1; ++y) {
+      T* dst = &f(r.x0, y);
+      for (int x = 0; x < n; ++x, p += sizeof(T)) {
+        T v;
+        std::memcpy(&v, p, sizeof(T));
+        dst[x] += v;
+      }
     }
-  }
+  });
 }
 
-template <class T>
-void zero(Field<T>& f, const Rect& r) {
-  for (int y = r.y0; y < r.y1; ++y) std::fill(&f(r.x0, y), &f(r.x0, y) + (r.x1 - r.x0), T{});
+template <class RectOf>
+void zero(std::span<const Ghosts> parts, RectOf rect) {
+  each(parts, [&](auto& f, int w) {
+    using T = typename std::decay_t<decltype(f)>::value_type;
+    const Rect r = rect(w);
+    for (int y = r.y0; y < r.y1; ++y) std::fill(&f(r.x0, y), &f(r.x0, y) + (r.x1 - r.x0), T{});
+  });
 }
 
 int count_of(const std::vector<char>& buf) {
@@ -199,107 +229,119 @@ void check_call(const Field<T>& f, const TileGeom& g, int w, int max_width, int 
                               std::to_string(max_width) + ": " + why);
 }
 
+bool any_width(std::span<const Ghosts> parts) {
+  for (const Ghosts& g : parts)
+    if (g.width > 0) return true;
+  return false;
+}
+
 }  // namespace
 
-template <class T>
-void HaloExchanger::begin_fill(Field<T>& f, int w) {
+// The ghost and edge rectangles of width w (local cells): the x phase runs
+// on owned rows, the y phase on the full padded width (carrying corners).
+struct HaloExchanger::Rects {
+  int nx, ny;
+  Rect left_edge(int w) const { return {0, w, 0, ny}; }
+  Rect right_edge(int w) const { return {nx - w, nx, 0, ny}; }
+  Rect left_ghost(int w) const { return {-w, 0, 0, ny}; }
+  Rect right_ghost(int w) const { return {nx, nx + w, 0, ny}; }
+  Rect down_edge(int w) const { return {-w, nx + w, 0, w}; }
+  Rect up_edge(int w) const { return {-w, nx + w, ny - w, ny}; }
+  Rect down_ghost(int w) const { return {-w, nx + w, -w, 0}; }
+  Rect up_ghost(int w) const { return {-w, nx + w, ny, ny + w}; }
+};
+void HaloExchanger::check_all(std::span<const Ghosts> parts, const char* what) const {
+  for (const Ghosts& g : parts)
+    std::visit(
+        [&](auto* f) {
+          check_call(*f, g_, g.width, max_width_, nx_left_, nx_right_, ny_down_, ny_up_, what);
+        },
+        g.field);
+}
+
+// One phase along the axis of directions a and b = kFlip[a]: every field's
+// rectangle send_a (send_b) goes towards a (b), in one message each; what
+// arrives from a (b) fills rectangles of the shape recv_a (recv_b).
+void HaloExchanger::start_phase(std::span<const Ghosts> parts, int a, int b, RectOf send_a,
+                                RectOf send_b, RectOf recv_a, RectOf recv_b) {
+  const Rects R{g_.nx, g_.ny};
+  const auto rect = [&R](RectOf r) { return [&R, r](int w) { return (R.*r)(w); }; };
+  pack(parts, rect(send_a), send_[a]);
+  pack(parts, rect(send_b), send_[b]);
+  recv_[a].resize(bytes_of_all(parts, rect(recv_a)));
+  recv_[b].resize(bytes_of_all(parts, rect(recv_b)));
+  const int nb[4] = {left_, right_, down_, up_};
+  post(cart_, nb, a, b, send_, recv_, requests_, pending_, stats_);
+}
+
+// Waits for the phase, then copies (or adds) what came from a and b into the
+// rectangles into_a and into_b.
+void HaloExchanger::finish_phase(std::span<const Ghosts> parts, int a, int b, RectOf into_a,
+                                 RectOf into_b, bool add) {
+  wait_all(requests_, pending_);
+  const Rects R{g_.nx, g_.ny};
+  for (const auto& [d, r] : {std::pair{a, into_a}, std::pair{b, into_b}}) {
+    const auto rect = [&R, r = r](int w) { return (R.*r)(w); };
+    if (add)
+      unpack_add(parts, rect, recv_[d]);
+    else
+      unpack_copy(parts, rect, recv_[d]);
+  }
+}
+
+void HaloExchanger::begin_fill(std::span<const Ghosts> parts) {
   if (pending_ != 0)
     throw std::logic_error("halo exchange begin_fill: an exchange is already in flight");
-  check_call(f, g_, w, max_width_, nx_left_, nx_right_, ny_down_, ny_up_, "begin_fill");
-  if (w == 0) return;
-  const int nx = g_.nx, ny = g_.ny;
+  check_all(parts, "begin_fill");
+  if (!any_width(parts)) return;
   // x phase, owned rows: our first/last w columns go left/right.
-  pack(f, Rect{0, w, 0, ny}, send_[kLeft]);
-  pack(f, Rect{nx - w, nx, 0, ny}, send_[kRight]);
-  recv_[kLeft].resize(bytes_of<T>(Rect{-w, 0, 0, ny}));
-  recv_[kRight].resize(bytes_of<T>(Rect{nx, nx + w, 0, ny}));
-  const int nb[4] = {left_, right_, down_, up_};
-  post(cart_, nb, kLeft, kRight, send_, recv_, requests_, pending_, stats_);
+  start_phase(parts, kLeft, kRight, &Rects::left_edge, &Rects::right_edge, &Rects::left_ghost,
+              &Rects::right_ghost);
 }
 
-template <class T>
-void HaloExchanger::finish_fill(Field<T>& f, int w) {
-  check_call(f, g_, w, max_width_, nx_left_, nx_right_, ny_down_, ny_up_, "finish_fill");
+void HaloExchanger::finish_fill(std::span<const Ghosts> parts) {
+  check_all(parts, "finish_fill");
   if (pending_ == 0) {
-    if (w == 0) return;  // begin_fill(f, 0) posted nothing
+    if (!any_width(parts)) return;  // begin_fill with width 0 posted nothing
     throw std::logic_error("halo exchange finish_fill: no begin_fill is in flight");
   }
-  wait_all(requests_, pending_);
-  const int nx = g_.nx, ny = g_.ny;
-  const Rect left_ghost{-w, 0, 0, ny}, right_ghost{nx, nx + w, 0, ny};
-  if (recv_[kLeft].size() != bytes_of<T>(left_ghost) ||
-      recv_[kRight].size() != bytes_of<T>(right_ghost))
+  const Rects R{g_.nx, g_.ny};
+  if (recv_[kLeft].size() != bytes_of_all(parts, [&R](int w) { return R.left_ghost(w); }) ||
+      recv_[kRight].size() != bytes_of_all(parts, [&R](int w) { return R.right_ghost(w); }))
     throw std::logic_error(
-        "halo exchange finish_fill: width or type differ from the matching begin_fill");
-  unpack_copy(f, left_ghost, recv_[kLeft]);
-  unpack_copy(f, right_ghost, recv_[kRight]);
-
+        "halo exchange finish_fill: widths or types differ from the matching begin_fill");
+  finish_phase(parts, kLeft, kRight, &Rects::left_ghost, &Rects::right_ghost, false);
   // y phase, full padded width (carries the corners): our first/last w rows
   // go down/up.
-  pack(f, Rect{-w, nx + w, 0, w}, send_[kDown]);
-  pack(f, Rect{-w, nx + w, ny - w, ny}, send_[kUp]);
-  const Rect down_ghost{-w, nx + w, -w, 0}, up_ghost{-w, nx + w, ny, ny + w};
-  recv_[kDown].resize(bytes_of<T>(down_ghost));
-  recv_[kUp].resize(bytes_of<T>(up_ghost));
-  const int nb[4] = {left_, right_, down_, up_};
-  post(cart_, nb, kDown, kUp, send_, recv_, requests_, pending_, stats_);
-  wait_all(requests_, pending_);
-  unpack_copy(f, down_ghost, recv_[kDown]);
-  unpack_copy(f, up_ghost, recv_[kUp]);
+  start_phase(parts, kDown, kUp, &Rects::down_edge, &Rects::up_edge, &Rects::down_ghost,
+              &Rects::up_ghost);
+  finish_phase(parts, kDown, kUp, &Rects::down_ghost, &Rects::up_ghost, false);
 }
 
-template <class T>
-void HaloExchanger::fill(Field<T>& f, int w) {
-  begin_fill(f, w);
-  finish_fill(f, w);
+void HaloExchanger::fill(std::span<const Ghosts> parts) {
+  begin_fill(parts);
+  finish_fill(parts);
 }
 
-template <class T>
-void HaloExchanger::sum(Field<T>& f, int w) {
+void HaloExchanger::sum(std::span<const Ghosts> parts) {
   if (pending_ != 0) throw std::logic_error("halo exchange sum: an exchange is already in flight");
-  check_call(f, g_, w, max_width_, nx_left_, nx_right_, ny_down_, ny_up_, "sum");
-  if (w == 0) return;
-  const int nx = g_.nx, ny = g_.ny;
-  const int nb[4] = {left_, right_, down_, up_};
-
+  check_all(parts, "sum");
+  if (!any_width(parts)) return;
   // y phase, full padded width: ghost rows go to their owners below/above,
   // which add them into their top/bottom w rows (ghost columns included, so
-  // corner contributions travel on in the x phase).
-  const Rect down_ghost{-w, nx + w, -w, 0}, up_ghost{-w, nx + w, ny, ny + w};
-  pack(f, down_ghost, send_[kDown]);
-  pack(f, up_ghost, send_[kUp]);
-  recv_[kDown].resize(bytes_of<T>(up_ghost));  // the down neighbour's up ghosts
-  recv_[kUp].resize(bytes_of<T>(down_ghost));
-  post(cart_, nb, kDown, kUp, send_, recv_, requests_, pending_, stats_);
-  wait_all(requests_, pending_);
-  unpack_add(f, Rect{-w, nx + w, 0, w}, recv_[kDown]);
-  unpack_add(f, Rect{-w, nx + w, ny - w, ny}, recv_[kUp]);
-
+  // corner contributions travel on in the x phase). What arrives from below
+  // is the down neighbour's up ghosts.
+  start_phase(parts, kDown, kUp, &Rects::down_ghost, &Rects::up_ghost, &Rects::up_ghost,
+              &Rects::down_ghost);
+  finish_phase(parts, kDown, kUp, &Rects::down_edge, &Rects::up_edge, true);
   // x phase, owned rows: ghost columns go to their owners left/right.
-  const Rect left_ghost{-w, 0, 0, ny}, right_ghost{nx, nx + w, 0, ny};
-  pack(f, left_ghost, send_[kLeft]);
-  pack(f, right_ghost, send_[kRight]);
-  recv_[kLeft].resize(bytes_of<T>(right_ghost));
-  recv_[kRight].resize(bytes_of<T>(left_ghost));
-  post(cart_, nb, kLeft, kRight, send_, recv_, requests_, pending_, stats_);
-  wait_all(requests_, pending_);
-  unpack_add(f, Rect{0, w, 0, ny}, recv_[kLeft]);
-  unpack_add(f, Rect{nx - w, nx, 0, ny}, recv_[kRight]);
-
-  zero(f, down_ghost);
-  zero(f, up_ghost);
-  zero(f, left_ghost);
-  zero(f, right_ghost);
+  start_phase(parts, kLeft, kRight, &Rects::left_ghost, &Rects::right_ghost, &Rects::right_ghost,
+              &Rects::left_ghost);
+  finish_phase(parts, kLeft, kRight, &Rects::left_edge, &Rects::right_edge, true);
+  const Rects R{g_.nx, g_.ny};
+  for (const RectOf r :
+       {&Rects::down_ghost, &Rects::up_ghost, &Rects::left_ghost, &Rects::right_ghost})
+    zero(parts, [&R, r](int w) { return (R.*r)(w); });
 }
-
-#define ERG_HALO_INSTANTIATE(T)                            \
-  template void HaloExchanger::fill(Field<T>&, int);       \
-  template void HaloExchanger::sum(Field<T>&, int);        \
-  template void HaloExchanger::begin_fill(Field<T>&, int); \
-  template void HaloExchanger::finish_fill(Field<T>&, int);
-ERG_HALO_INSTANTIATE(std::int64_t)
-ERG_HALO_INSTANTIATE(float)
-ERG_HALO_INSTANTIATE(double)
-#undef ERG_HALO_INSTANTIATE
 
 }  // namespace erg::dist

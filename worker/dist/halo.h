@@ -23,11 +23,18 @@
 #include <mpi.h>
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "core/field.h"
+#include "dist/ghosts.h"
 
 namespace erg::dist {
+
+// Local cells [x0, x1) x [y0, y1).
+struct Rect {
+  int x0, x1, y0, y1;
+};
 
 class HaloExchanger {
  public:
@@ -36,18 +43,37 @@ class HaloExchanger {
   // rank learns its neighbours' tile sizes.
   HaloExchanger(MPI_Comm cart, const TileGeom& g);
 
-  template <class T>
-  void fill(Field<T>& f, int w);
-  template <class T>
-  void sum(Field<T>& f, int w);
-
+  // Every field of the list with its own width, in one message per
+  // neighbour and phase (4 messages per fill or sum, whatever the count).
+  void fill(std::span<const Ghosts> fields);
+  void sum(std::span<const Ghosts> fields);
   // Split fill for overlapping interior work with the transfer: begin_fill
-  // posts the x phase; finish_fill completes it, then runs the y phase.
-  // Nothing else may be exchanged between the two calls.
+  // posts the x phase; finish_fill (same list) completes it, then runs the
+  // y phase. Nothing else may be exchanged between the two calls.
+  void begin_fill(std::span<const Ghosts> fields);
+  void finish_fill(std::span<const Ghosts> fields);
+
+  // One field.
   template <class T>
-  void begin_fill(Field<T>& f, int w);
+  void fill(Field<T>& f, int w) {
+    const Ghosts g{&f, w};
+    fill(std::span<const Ghosts>(&g, 1));
+  }
   template <class T>
-  void finish_fill(Field<T>& f, int w);
+  void sum(Field<T>& f, int w) {
+    const Ghosts g{&f, w};
+    sum(std::span<const Ghosts>(&g, 1));
+  }
+  template <class T>
+  void begin_fill(Field<T>& f, int w) {
+    const Ghosts g{&f, w};
+    begin_fill(std::span<const Ghosts>(&g, 1));
+  }
+  template <class T>
+  void finish_fill(Field<T>& f, int w) {
+    const Ghosts g{&f, w};
+    finish_fill(std::span<const Ghosts>(&g, 1));
+  }
 
   // Messages and bytes this rank has sent since construction or reset.
   struct Stats {
@@ -63,6 +89,13 @@ class HaloExchanger {
   int up() const { return up_; }
 
  private:
+  void check_all(std::span<const Ghosts> fields, const char* what) const;
+  struct Rects;  // the edge and ghost rectangles of a width (halo.cpp)
+  using RectOf = Rect (Rects::*)(int) const;
+  void start_phase(std::span<const Ghosts> fields, int a, int b, RectOf send_a, RectOf send_b,
+                   RectOf recv_a, RectOf recv_b);
+  void finish_phase(std::span<const Ghosts> fields, int a, int b, RectOf into_a, RectOf into_b,
+                    bool add);
   MPI_Comm cart_;
   TileGeom g_;
   int left_ = 0, right_ = 0, down_ = 0, up_ = 0;              // ranks

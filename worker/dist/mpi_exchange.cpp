@@ -15,6 +15,23 @@ void check(int rc, const char* what) {
 }
 }  // namespace
 
+void MpiExchange::ghosts(GhostOp op, std::span<const Ghosts> fields) {
+  switch (op) {
+    case GhostOp::kFill:
+      halo_.fill(fields);
+      break;
+    case GhostOp::kBeginFill:
+      halo_.begin_fill(fields);
+      break;
+    case GhostOp::kFinishFill:
+      halo_.finish_fill(fields);
+      break;
+    case GhostOp::kSum:
+      halo_.sum(fields);
+      break;
+  }
+}
+
 MpiExchange::MpiExchange(MPI_Comm cart, const Decomposition& d, const TileGeom& g, int cx, int cy)
     : cart_(cart), d_(d), cx_(cx), cy_(cy), halo_(cart, g) {
   check(MPI_Comm_size(cart_, &size_), "MPI_Comm_size");

@@ -17,11 +17,7 @@ class MpiExchange final : public Exchange {
   // aligned to them). Collective.
   MpiExchange(MPI_Comm cart, const Decomposition& d, const TileGeom& g, int cx, int cy);
 
-  void fill(Field<units_t>& f, int w) override { halo_.fill(f, w); }
-  void fill(Field<float>& f, int w) override { halo_.fill(f, w); }
-  void sum(Field<units_t>& f, int w) override { halo_.sum(f, w); }
-  void begin_fill(Field<float>& f, int w) override { halo_.begin_fill(f, w); }
-  void finish_fill(Field<float>& f, int w) override { halo_.finish_fill(f, w); }
+  void ghosts(GhostOp op, std::span<const Ghosts> fields) override;
 
   void sum_exact(std::vector<total_t>& v) override;
   bool any(bool local) override;

@@ -48,15 +48,22 @@ void sum_periodic(Field<T>& f, int width) {
 template void fill_periodic(Field<units_t>&, int);
 template void fill_periodic(Field<float>&, int);
 template void sum_periodic(Field<units_t>&, int);
+template void sum_periodic(Field<float>&, int);
+template void fill_periodic(Field<double>&, int);
+template void sum_periodic(Field<double>&, int);
 
-void PeriodicExchange::fill(Field<units_t>& f, int w) {
-  fill_periodic(f, w);
-}
-void PeriodicExchange::fill(Field<float>& f, int w) {
-  fill_periodic(f, w);
-}
-void PeriodicExchange::sum(Field<units_t>& f, int w) {
-  sum_periodic(f, w);
+// A local copy: the first half of a split fill does it all.
+void PeriodicExchange::ghosts(GhostOp op, std::span<const Ghosts> fields) {
+  if (op == GhostOp::kFinishFill) return;
+  for (const Ghosts& g : fields)
+    std::visit(
+        [&](auto* f) {
+          if (op == GhostOp::kSum)
+            sum_periodic(*f, g.width);
+          else
+            fill_periodic(*f, g.width);
+        },
+        g.field);
 }
 
 }  // namespace erg::dist

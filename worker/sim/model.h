@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "core/fields.h"
 #include "core/grid.h"
 #include "erg/v1/job.pb.h"
 #include "stages/echo_dunes.h"
@@ -99,6 +100,25 @@ struct Model {
   }
   int halo_avalanche() const {
     return 2 * std::max(rounds.widest(avalanche_iterations), rounds.widest(bedrock_iterations));
+  }
+  // The ghost cells a field must have filled for the stages that read them
+  // (its registry Reach, core/fields.h).
+  int ghost_width(fields::Reach r) const {
+    switch (r) {
+      case fields::Reach::kNone:
+        return 0;
+      case fields::Reach::kShadow:
+        return halo_shadow();
+      case fields::Reach::kSaltation:
+        return halo_saltation();
+      case fields::Reach::kReptation:
+        return halo_avalanche_first() + 1;
+      case fields::Reach::kAvalanche:
+        return halo_avalanche() + 1;
+      case fields::Reach::kWhole:
+        return tile.halo;
+    }
+    return tile.halo;
   }
 };
 

@@ -111,10 +111,22 @@ Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt, const 
   init_backend(opt, s);
 }
 
+void Halo::run(GhostOp op, std::initializer_list<fields::Id> ids, int width) {
+  std::vector<FieldGhosts> list;
+  for (const fields::Id id : ids)
+    list.push_back({id, width >= 0 ? width : m_->ghost_width(fields::info(id).ghosts)});
+  b_->ghosts(op, list);
+}
+
 void Simulation::init_backend(const RunOptions& opt, const TileState& initial) {
   model_.avalanche_everywhere = opt.avalanche_everywhere;
   backend_ = make_backend(opt.backend, model_, opt.threads, *exchange_, local_rank_);
+  halo_.emplace(*backend_, model_);
   backend_->upload(initial);
+  // Per-cell constants read in the ghosts: repose tangents (avalanching) and
+  // obstacles (hop paths, echo dunes, walls).
+  halo_->fill({fields::kTanL, fields::kObstacles});
+  backend_->obstacles_changed();
 }
 
 void Simulation::add_events(const std::vector<erg::v1::Event>& events) {
@@ -128,6 +140,7 @@ void Simulation::add_events(const std::vector<erg::v1::Event>& events) {
 void Simulation::apply_events(std::int64_t step) {
   const double lx = model_.tile.gnx * static_cast<double>(model_.tile.cell_m);
   const double ly = model_.tile.gny * static_cast<double>(model_.tile.cell_m);
+  bool vegetation = false, obstacles = false;  // changed: their ghosts are refilled
   for (const auto& e : spec_.events()) {
     if (e.step() != step) continue;
     switch (e.action_case()) {
@@ -148,6 +161,7 @@ void Simulation::apply_events(std::int64_t step) {
                          lx,
                          ly};
         backend_->set_vegetation(r);
+        vegetation = true;
         break;
       }
       case erg::v1::Event::kAddObstacle:
@@ -156,15 +170,25 @@ void Simulation::apply_events(std::int64_t step) {
         for (const obstacles::Shape& s :
              init::obstacle_shapes(add ? e.add_obstacle() : e.remove_obstacle(), lx, ly))
           sand_added_ += backend_->set_obstacle(s, !add);
+        obstacles = true;
         break;
       }
       default:  // wind switches are read by wind::at_step
         break;
     }
   }
+  if (vegetation && obstacles)
+    halo_->fill({fields::kTanL, fields::kObstacles});
+  else if (vegetation)
+    halo_->fill({fields::kTanL});
+  else if (obstacles)
+    halo_->fill({fields::kObstacles});
+  if (obstacles) backend_->obstacles_changed();
 }
 
-// The step pipeline ([P19] Fig. 3, [N24] 3.2, docs/design.md "The step pipeline").
+// The step pipeline ([P19] Fig. 3, [N24] 3.2, docs/design.md "The step
+// pipeline"), with every halo exchange between the stages that need it. The
+// widths follow from the fields' registry Reach (core/fields.h).
 void Simulation::step() {
   auto t = Clock::now();
   auto lap = [&](Stage s) {
@@ -172,22 +196,42 @@ void Simulation::step() {
     times_.ms[s] += ms_since(t);
     t = Clock::now();
   };
-  apply_events(step_);
+  Halo& halo = *halo_;
+  apply_events(step_);  // refills the ghosts of the per-cell constants it changed
   lap(kEvents);
+  backend_->heights();
+  // The shadow march reads the heights upwind: their ghosts travel while the
+  // wind is warped, which reads none.
+  halo.begin_fill({fields::kHeight});
   backend_->wind(wind::at_step(spec_, step_));  // high-altitude wind, venturi, warping
+  halo.finish_fill({fields::kHeight});
   // Local wind primitives [P19 4.4], w = warped + u, before the shadow reads w.
   if (const auto active = wind::primitives_at(spec_, step_); !active.empty())
     backend_->perturb_wind(wind::batches(active));
   lap(kWind);
   backend_->shadow();
   lap(kShadow);
-  backend_->saltation(step_);  // lift, hop, deposit, bounce, abrade
+  backend_->saltation_hop(step_);     // lift, hop
+  halo.sum({fields::kLanded});        // sand that left the tile lands on its neighbours
+  backend_->saltation_impact(step_);  // deposit, bounce, abrade
   lap(kSaltation);
+  // One exchange for reptation and the first avalanching round, which run on
+  // the tile grown by that round's halo.
+  if (model_.reptation_k > 0.0f)
+    halo.fill({fields::kSand, fields::kBedrock, fields::kReptation});
+  else
+    halo.fill({fields::kSand, fields::kBedrock});
   backend_->reptation();
   lap(kReptation);
-  times_.avalanche_iterations += backend_->avalanche_sand();
+  // Later avalanching rounds refill the layers that moved (docs/design.md
+  // "Tiling"): with one tile before every iteration, with several at most
+  // once per step, after the tiles agree that something still moves.
+  const Refill refill = [&](std::initializer_list<fields::Id> ids, int width) {
+    halo.fill(ids, width);
+  };
+  times_.avalanche_iterations += backend_->avalanche_sand(refill);
   lap(kAvalanche);
-  backend_->avalanche_bedrock();
+  backend_->avalanche_bedrock(refill);
   lap(kBedrock);
   ++step_;
   ++times_.steps;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <initializer_list>
 #include <memory>
 #include <optional>
 #include <string>
@@ -43,6 +44,27 @@ struct StageTimes {
   std::array<double, kStageCount> ms{};  // accumulated wall time per stage
   long long steps = 0;
   long long avalanche_iterations = 0;  // iterations that moved sand
+};
+
+// The halo exchanges of a step, as Simulation::step lists them: the ghosts
+// of the listed fields, each as wide as the stages that read it reach (its
+// registry Reach, Model::ghost_width) unless a width is given, all of them in
+// one message per neighbour and phase.
+class Halo {
+ public:
+  Halo(Backend& b, const Model& m) : b_(&b), m_(&m) {}
+  void fill(std::initializer_list<fields::Id> ids) { run(GhostOp::kFill, ids, -1); }
+  void fill(std::initializer_list<fields::Id> ids, int width) { run(GhostOp::kFill, ids, width); }
+  // A fill split around work that reads none of these ghosts.
+  void begin_fill(std::initializer_list<fields::Id> ids) { run(GhostOp::kBeginFill, ids, -1); }
+  void finish_fill(std::initializer_list<fields::Id> ids) { run(GhostOp::kFinishFill, ids, -1); }
+  // Ghosts added into their owners (a scatter across tile edges).
+  void sum(std::initializer_list<fields::Id> ids) { run(GhostOp::kSum, ids, -1); }
+
+ private:
+  void run(GhostOp op, std::initializer_list<fields::Id> ids, int width);
+  Backend* b_;
+  const Model* m_;
 };
 
 class Simulation {
@@ -112,6 +134,7 @@ class Simulation {
   dist::Exchange* exchange_ = nullptr;
   int local_rank_ = 0;
   std::unique_ptr<Backend> backend_;
+  std::optional<Halo> halo_;
   std::int64_t step_ = 0;
   total_t sand_added_ = 0, bedrock_added_ = 0;
   StageTimes times_;

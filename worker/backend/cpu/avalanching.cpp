@@ -152,11 +152,12 @@ struct AvalancheLayers {
 class AvalancheSweep {
  public:
   AvalancheSweep(const Model& m, const TileGeom& g, int threads, dist::Exchange& ex,
-                 const AvalancheLayers& f, bool bedrock, int iterations)
+                 const Refill& refill, const AvalancheLayers& f, bool bedrock, int iterations)
       : m_(m),
         g_(g),
         threads_(threads),
         ex_(ex),
+        refill_(refill),
         f_(f),
         bedrock_(bedrock),
         iterations_(iterations),
@@ -253,7 +254,11 @@ class AvalancheSweep {
     round_ = m_.rounds.of(it, iterations_);
     const int e_last = e_;
     e_ = 2 * round_.length;
-    ex_.fill(target_, e_ + 1);
+    // (A wider round, below, needs the other layer's ghosts too: one message.)
+    if (e_ > e_last && !bedrock_)
+      refill_({fields::kSand, fields::kBedrock}, e_ + 1);
+    else
+      refill_({bedrock_ ? fields::kBedrock : fields::kSand}, e_ + 1);
     if (e_ <= e_last) {
       heights(-e_, 0, -e_, nx + e_);
       heights(ny, ny + e_, -e_, nx + e_);
@@ -267,8 +272,7 @@ class AvalancheSweep {
         }
     } else {
       // A wider round (the rest of the iterations in one, several tiles):
-      // the other layer's ghosts too, and every cell.
-      if (!bedrock_) ex_.fill(f_.bedrock, e_ + 1);
+      // the other layer's ghosts too (refilled above), and every cell.
       heights(-e_, ny + e_, -e_, nx + e_);
       std::fill(visit_.begin(), visit_.end(), 1);
     }
@@ -387,7 +391,8 @@ class AvalancheSweep {
   const Model& m_;
   const TileGeom& g_;
   const int threads_;
-  dist::Exchange& ex_;
+  dist::Exchange& ex_;    // tiles() and any()
+  const Refill& refill_;  // the step's halo fill, between rounds
   const AvalancheLayers f_;
   const bool bedrock_;
   const int iterations_;
@@ -401,26 +406,26 @@ class AvalancheSweep {
 
 }  // namespace
 
-int CpuBackend::avalanche(bool bedrock, int iterations, bool* settled) {
+int CpuBackend::avalanche(bool bedrock, int iterations, const Refill& refill, bool* settled) {
   if (settled) *settled = false;
   if (iterations <= 0) return 0;
   const AvalancheLayers layers{f_.bedrock, f_.sand, f_.obstacles, f_.tan_l, h_a_, frac_};
-  return AvalancheSweep(m_, g_, threads_, ex_, layers, bedrock, iterations).run(settled);
+  return AvalancheSweep(m_, g_, threads_, ex_, refill, layers, bedrock, iterations).run(settled);
 }
 
-int CpuBackend::avalanche_sand() {
+int CpuBackend::avalanche_sand(const Refill& refill) {
   if (m_.avalanche_iterations <= 0) return 0;
-  return avalanche(false, m_.avalanche_iterations, nullptr);
+  return avalanche(false, m_.avalanche_iterations, refill, nullptr);
 }
 
 // Bedrock only changes by abrasion and events. Once an avalanche found it
 // settled on every tile (no cell exceeds the bedrock repose angle), running
 // it again on the same bedrock is the identity, so it is skipped until
 // bedrock changes somewhere.
-void CpuBackend::avalanche_bedrock() {
+void CpuBackend::avalanche_bedrock(const Refill& refill) {
   if (!ex_.any(bedrock_changed_)) return;
   bool settled = false;
-  avalanche(true, m_.bedrock_iterations, &settled);
+  avalanche(true, m_.bedrock_iterations, refill, &settled);
   bedrock_changed_ = !settled;
 }
 

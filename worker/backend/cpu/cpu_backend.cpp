@@ -38,11 +38,20 @@ void CpuBackend::upload(const TileState& s) {
   });
   bedrock_changed_ = true;
   update_repose();
-  obstacles_changed();
+}
+
+void CpuBackend::ghosts(GhostOp op, std::span<const FieldGhosts> fields) {
+  std::vector<dist::Ghosts> list;
+  for (const FieldGhosts& f : fields) {
+    if (fields::info(f.id).type == fields::Type::kUnits)
+      list.push_back({&units(f.id), f.width});
+    else
+      list.push_back({&reals(f.id), f.width});
+  }
+  ex_.ghosts(op, list);
 }
 
 void CpuBackend::obstacles_changed() {
-  ex_.fill(f_.obstacles, g_.halo);
   const float* o = f_.obstacles.data();
   bool any = false;
   for (size_t i = 0; i < f_.obstacles.size(); ++i) any |= obstacles::is_obstacle(o[i]);
@@ -76,8 +85,6 @@ void CpuBackend::update_repose() {
     for (int x = 0; x < g_.nx; ++x)
       t[x] = vegetation::repose_tan(v[x], m_.tan_l_sand, m_.tan_l_vegetated);
   }
-  // Avalanching reads the tangents inside its whole halo.
-  ex_.fill(f_.tan_l, m_.halo_avalanche() + 1);
 }
 
 namespace {
@@ -155,7 +162,6 @@ total_t CpuBackend::set_obstacle(const obstacles::Shape& sh, bool remove) {
       }
     }
   }
-  obstacles_changed();
   std::vector<total_t> all{change};
   ex_.sum_exact(all);
   return all[0];

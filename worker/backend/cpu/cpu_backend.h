@@ -44,13 +44,18 @@ class CpuBackend final : public Backend {
   void download(TileState& s) override;
   void download_owned(fields::Id id, std::vector<float>& out) override;
 
+  void ghosts(GhostOp op, std::span<const FieldGhosts> fields) override;
+  void obstacles_changed() override;  // updates any_obstacles_
+
+  void heights() override;
   void wind(Vec2 a) override;
   void perturb_wind(const std::vector<wind_primitives::Batch>& batches) override;
   void shadow() override;
-  void saltation(std::int64_t step) override;
+  void saltation_hop(std::int64_t step) override;
+  void saltation_impact(std::int64_t step) override;
   void reptation() override;
-  int avalanche_sand() override;
-  void avalanche_bedrock() override;
+  int avalanche_sand(const Refill& refill) override;
+  void avalanche_bedrock(const Refill& refill) override;
 
   total_t apply_sand_brush(const events::Brush& b) override;
   total_t apply_bedrock_brush(const events::Brush& b) override;
@@ -63,7 +68,7 @@ class CpuBackend final : public Backend {
   // One avalanching sweep structure shared by sand and bedrock (avalanching.cpp).
   // settled (optional): set when an iteration moved nothing and no donor is
   // stuck, i.e. running again on the same heights would be the identity.
-  int avalanche(bool bedrock, int iterations, bool* settled);
+  int avalanche(bool bedrock, int iterations, const Refill& refill, bool* settled);
 
   Model m_;
   TileGeom g_;
@@ -75,7 +80,6 @@ class CpuBackend final : public Backend {
   Field<units_t>& units(fields::Id id) { return f_.units[id]; }
   Field<float>& reals(fields::Id id) { return f_.reals[id]; }
   bool any_obstacles_ = false;   // on this tile or its ghosts (saltation's slow path)
-  void obstacles_changed();      // refills the ghosts, updates any_obstacles_
   bool bedrock_changed_ = true;  // since bedrock avalanching last found it settled
   // scratch of single stages
   Field<units_t> height_units_;  // b + s, for reptation
@@ -84,7 +88,7 @@ class CpuBackend final : public Backend {
   Field<float> h_a_, frac_;
   // wind warping
   CoarseSmoother smoother_;
-  std::vector<double> coarse_h_;
+  std::vector<double> coarse_mine_, coarse_h_;  // this tile's coarse cells, all of them
   std::vector<float> grad_x_[2], grad_y_[2];
   // Coarse interpolation stencils: per column (as arrays) and per row.
   std::vector<int> axis_x_i0_, axis_x_i1_;

@@ -32,15 +32,13 @@ void reptation_row(const units_t* h, const units_t* s, const float* sr, const fl
 }  // namespace
 
 void CpuBackend::reptation() {
-  // One exchange for reptation and avalanching together: the layers and the
-  // impact strengths with the avalanching halo plus one. Reptation then runs
-  // on the tile grown by the avalanching halo (its ghosts computed exactly as
-  // their owners compute them), and avalanching needs no exchange.
-  const int w = m_.halo_avalanche_first() + 1;
-  ex_.fill(f_.sand, w);
-  ex_.fill(f_.bedrock, w);
+  // The layers and the impact strengths come with the avalanching halo plus
+  // one (fields::Reach::kReptation, one exchange before this stage).
+  // Reptation runs on the tile grown by the avalanching halo (its ghosts
+  // computed exactly as their owners compute them), so the first avalanching
+  // round needs no exchange.
   if (m_.reptation_k <= 0.0f) return;
-  ex_.fill(f_.reptation, w);
+  const int w = m_.ghost_width(fields::Reach::kReptation);
   const int e = w - 1;
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = -w; y < g_.ny + w; ++y) {

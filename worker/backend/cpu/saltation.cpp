@@ -146,7 +146,7 @@ void scatter_row_obstacles(units_t* air, const float* wx, const float* wy, const
 
 }  // namespace
 
-void CpuBackend::saltation(std::int64_t step) {
+void CpuBackend::saltation_hop(std::int64_t step) {
   const saltation::Params p = m_.saltation;
   const std::uint64_t seed = m_.seed;
   const auto ustep = static_cast<std::uint64_t>(step);
@@ -197,9 +197,14 @@ void CpuBackend::saltation(std::int64_t step) {
       }
     }
   }
-  // Sand that left the tile re-enters on the opposite side (the torus).
-  ex_.sum(f_.landed, reach);
+}
 
+// After the landed ghosts are summed into their owners (Simulation::step):
+// sand that left the tile re-enters on the opposite side (the torus).
+void CpuBackend::saltation_impact(std::int64_t step) {
+  const saltation::Params p = m_.saltation;
+  const std::uint64_t seed = m_.seed;
+  const auto ustep = static_cast<std::uint64_t>(step);
   // (3) Deposit, bounce, abrade; record the reptation strength.
   bool abraded = false;
 #pragma omp parallel for num_threads(threads_) schedule(static) reduction(|| : abraded)

@@ -100,14 +100,14 @@ void warp_row(const float* h, float* __restrict wx, float* __restrict wy, int nx
 }
 }  // namespace
 
-void CpuBackend::wind(Vec2 a) {
+void CpuBackend::heights() {
   const CoarseGrid& c = m_.coarse;
   // One pass over the layers: heights in metres, and the exact block sums of
   // the coarse cells this tile owns (tiles are aligned to coarse cells):
   // int64 per row of a block, 128 bits per block, so the mean of a coarse
   // cell is the same whichever tile computes it.
   const int cnx = g_.nx / c.cx, cny = g_.ny / c.cy;
-  std::vector<double> mine(static_cast<size_t>(cnx) * cny);
+  coarse_mine_.assign(static_cast<size_t>(cnx) * cny, 0.0);
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int J = 0; J < cny; ++J) {
     std::vector<total_t> sums(static_cast<size_t>(cnx), 0);
@@ -126,14 +126,16 @@ void CpuBackend::wind(Vec2 a) {
       }
     }
     for (int I = 0; I < cnx; ++I)
-      mine[static_cast<size_t>(J) * cnx + I] = static_cast<double>(sums[static_cast<size_t>(I)]) *
-                                               kUnitM / (static_cast<double>(c.cx) * c.cy);
+      coarse_mine_[static_cast<size_t>(J) * cnx + I] =
+          static_cast<double>(sums[static_cast<size_t>(I)]) * kUnitM /
+          (static_cast<double>(c.cx) * c.cy);
   }
-  // The shadow march reads heights in the halo: the exchange runs while the
-  // coarse grid is gathered and smoothed and the wind warped (none of which
-  // reads ghosts).
-  ex_.begin_fill(f_.height_m, m_.halo_shadow());
-  ex_.gather_coarse(mine, coarse_h_);
+}
+
+// Reads no ghosts: the heights' exchange may run meanwhile (Simulation::step).
+void CpuBackend::wind(Vec2 a) {
+  const CoarseGrid& c = m_.coarse;
+  ex_.gather_coarse(coarse_mine_, coarse_h_);
   smoother_.gradients(coarse_h_, grad_x_, grad_y_);
 
   const float k = m_.venturi_k;
@@ -162,7 +164,6 @@ void CpuBackend::wind(Vec2 a) {
              axis_x_i0_.data(), axis_x_i1_.data(), axis_x_t_.data(), rows.data(),
              rows.data() + c.nx, rows.data() + 2 * c.nx, rows.data() + 3 * c.nx);
   }
-  ex_.finish_fill(f_.height_m, m_.halo_shadow());
 }
 
 // Every owned cell from its global index only: no ghosts are read, and the

@@ -96,7 +96,7 @@ __global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h,
 
 }  // namespace
 
-int CudaBackend::avalanche(bool bedrock, int iterations) {
+int CudaBackend::avalanche(bool bedrock, int iterations, const Refill& refill) {
   if (iterations <= 0) return 0;
   const Offsets off = neighbour_offsets(g_.pitch);
   DeviceBuffer<units_t>& target = bedrock ? d_.bedrock : d_.sand;
@@ -130,8 +130,10 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
       round = m_.rounds.of(it, iterations);
       const int e_last = e;
       e = 2 * round.length;
-      fill(target, e + 1);
-      if (e > e_last && !bedrock) fill(d_.bedrock, e + 1);
+      if (e > e_last && !bedrock)
+        refill({fields::kSand, fields::kBedrock}, e + 1);
+      else
+        refill({bedrock ? fields::kBedrock : fields::kSand}, e + 1);
       ERG_LAUNCH(level0_kernel, grown_cells(g_, e).grid, grown_cells(g_, e).block, g_, e,
                  e <= e_last, bedrock, d_.bedrock.get(), d_.sand.get(), d_.obstacles.get(),
                  h_a_.get());
@@ -170,13 +172,13 @@ int CudaBackend::avalanche(bool bedrock, int iterations) {
   return moved_iterations;
 }
 
-int CudaBackend::avalanche_sand() {
+int CudaBackend::avalanche_sand(const Refill& refill) {
   if (m_.avalanche_iterations <= 0) return 0;
-  return avalanche(false, m_.avalanche_iterations);
+  return avalanche(false, m_.avalanche_iterations, refill);
 }
 
-void CudaBackend::avalanche_bedrock() {
-  avalanche(true, m_.bedrock_iterations);
+void CudaBackend::avalanche_bedrock(const Refill& refill) {
+  avalanche(true, m_.bedrock_iterations, refill);
 }
 
 }  // namespace erg::gpu

@@ -320,11 +320,9 @@ void CudaBackend::upload(const TileState& s) {
       copy_in(reals(id), s.reals[id], f.name);
   });
   update_repose();
-  obstacles_changed();
 }
 
 void CudaBackend::obstacles_changed() {
-  fill(d_.obstacles, g_.halo);
   Field<float> o;
   copy_out(d_.obstacles, o, g_);
   bool any = false;
@@ -355,7 +353,6 @@ total_t CudaBackend::set_obstacle(const obstacles::Shape& sh, bool remove) {
   copy_in(d_.obstacles, o, "obstacles");
   copy_in(d_.sand, s, "sand");
   copy_in(d_.airborne, a, "airborne");
-  obstacles_changed();
   std::vector<total_t> all{change};
   ex_.sum_exact(all);
   return all[0];
@@ -397,8 +394,6 @@ void CudaBackend::update_repose() {
   const Launch l = owned_cells(g_);
   ERG_LAUNCH(repose_kernel, l.grid, l.block, g_, d_.vegetation.get(), d_.tan_l.get(), m_.tan_l_sand,
              m_.tan_l_vegetated);
-  // Avalanching reads the tangents inside its whole halo.
-  fill(d_.tan_l, m_.halo_avalanche() + 1);
 }
 
 void CudaBackend::fetch_rows(int count) {
@@ -445,35 +440,48 @@ Totals CudaBackend::totals() {
   return {all[0], all[1], all[2]};
 }
 
-template <class T>
-void CudaBackend::fill(DeviceBuffer<T>& f, int w) {
+// On one tile the periodic wrap runs on the device (a fill copies owners
+// into ghosts, a sum folds ghosts into owners); with several tiles the
+// fields go through host staging buffers and the exchange, all of them in
+// one message per neighbour.
+void CudaBackend::ghosts(GhostOp op, std::span<const FieldGhosts> fields) {
+  const auto is_units = [](fields::Id id) { return fields::info(id).type == fields::Type::kUnits; };
   if (ex_.tiles() == 1) {
-    fill_halo_periodic(f.get(), g_, w);
+    if (op == GhostOp::kFinishFill) return;  // done at kBeginFill
+    for (const FieldGhosts& f : fields) {
+      if (op == GhostOp::kSum) {
+        if (!is_units(f.id)) throw std::logic_error("CUDA backend: ghost sums are of units fields");
+        fold_halo_periodic(units(f.id).get(), g_, f.width);
+      } else if (is_units(f.id)) {
+        fill_halo_periodic(units(f.id).get(), g_, f.width);
+      } else {
+        fill_halo_periodic(reals(f.id).get(), g_, f.width);
+      }
+    }
     return;
   }
-  Field<T>& host = [this]() -> Field<T>& {
-    if constexpr (std::is_same_v<T, units_t>)
-      return stage_units_;
+  std::vector<dist::Ghosts> list;
+  for (const FieldGhosts& f : fields) {
+    if (is_units(f.id)) {
+      Field<units_t>& host = stage_.units[f.id];
+      if (host.size() != units(f.id).size()) host.reset(g_);
+      if (op != GhostOp::kFinishFill) copy_out(units(f.id), host, g_);
+      list.push_back({&host, f.width});
+    } else {
+      Field<float>& host = stage_.reals[f.id];
+      if (host.size() != reals(f.id).size()) host.reset(g_);
+      if (op != GhostOp::kFinishFill) copy_out(reals(f.id), host, g_);
+      list.push_back({&host, f.width});
+    }
+  }
+  ex_.ghosts(op, list);
+  if (op == GhostOp::kBeginFill) return;  // uploaded at kFinishFill
+  for (const FieldGhosts& f : fields) {
+    if (is_units(f.id))
+      copy_in(units(f.id), stage_.units[f.id], fields::info(f.id).name);
     else
-      return stage_float_;
-  }();
-  if (host.size() != f.size()) host.reset(g_);
-  ERG_CUDA_CHECK(cudaMemcpy(host.data(), f.get(), f.bytes(), cudaMemcpyDeviceToHost));
-  ex_.fill(host, w);
-  ERG_CUDA_CHECK(cudaMemcpy(f.get(), host.data(), f.bytes(), cudaMemcpyHostToDevice));
-}
-template void CudaBackend::fill(DeviceBuffer<units_t>&, int);
-template void CudaBackend::fill(DeviceBuffer<float>&, int);
-
-void CudaBackend::sum(DeviceBuffer<units_t>& f, int w) {
-  if (ex_.tiles() == 1) {
-    fold_halo_periodic(f.get(), g_, w);
-    return;
+      copy_in(reals(f.id), stage_.reals[f.id], fields::info(f.id).name);
   }
-  if (stage_units_.size() != f.size()) stage_units_.reset(g_);
-  ERG_CUDA_CHECK(cudaMemcpy(stage_units_.data(), f.get(), f.bytes(), cudaMemcpyDeviceToHost));
-  ex_.sum(stage_units_, w);
-  ERG_CUDA_CHECK(cudaMemcpy(f.get(), stage_units_.data(), f.bytes(), cudaMemcpyHostToDevice));
 }
 
 void CudaBackend::synchronize() {

@@ -197,13 +197,18 @@ class CudaBackend final : public Backend {
   void download(TileState& s) override;
   void download_owned(fields::Id id, std::vector<float>& out) override;
 
+  void ghosts(GhostOp op, std::span<const FieldGhosts> fields) override;
+  void obstacles_changed() override;  // updates any_obstacles_
+
+  void heights() override;                                                         // wind.cu
   void wind(Vec2 a) override;                                                      // wind.cu
   void perturb_wind(const std::vector<wind_primitives::Batch>& batches) override;  // wind.cu
   void shadow() override;                                                          // shadow.cu
-  void saltation(std::int64_t step) override;                                      // saltation.cu
+  void saltation_hop(std::int64_t step) override;                                  // saltation.cu
+  void saltation_impact(std::int64_t step) override;                               // saltation.cu
   void reptation() override;                                                       // reptation.cu
-  int avalanche_sand() override;                                                   // avalanching.cu
-  void avalanche_bedrock() override;                                               // avalanching.cu
+  int avalanche_sand(const Refill& refill) override;                               // avalanching.cu
+  void avalanche_bedrock(const Refill& refill) override;                           // avalanching.cu
 
   total_t apply_sand_brush(const events::Brush& b) override;
   total_t apply_bedrock_brush(const events::Brush& b) override;
@@ -213,14 +218,9 @@ class CudaBackend final : public Backend {
   void synchronize() override;
 
  private:
-  void update_repose();  // tan_l from vegetation
-  // Ghosts of a device field: on the device when this tile is the whole
-  // torus, else staged through host memory and the exchange.
-  template <class T>
-  void fill(DeviceBuffer<T>& f, int w);
-  void sum(DeviceBuffer<units_t>& f, int w);
-  int avalanche(bool bedrock, int iterations);  // avalanching.cu
-  void coarse_gradients();                      // wind.cu: coarse_h_ -> grad_x_, grad_y_
+  void update_repose();                                               // tan_l from vegetation
+  int avalanche(bool bedrock, int iterations, const Refill& refill);  // avalanching.cu
+  void coarse_gradients();  // wind.cu: coarse_h_ -> grad_x_, grad_y_
   // Per-row partial sums: copy the first `count` of row_sums_ to the host,
   // then add host_rows_[first, first + count) in a fixed order.
   void fetch_rows(int count);
@@ -229,15 +229,13 @@ class CudaBackend final : public Backend {
   Model m_;
   TileGeom g_;
   dist::Exchange& ex_;
-  Field<units_t> stage_units_;  // host staging of ghosts (several tiles)
-  Field<float> stage_float_;
+  fields::ByField<Field> stage_;  // host staging of ghosts (several tiles), per field
   // One padded device buffer per registry entry (core/fields.h, TileGeom::at
   // layout), by id or by the name the stages use (d_.sand, d_.reptation, ...).
   fields::Named<DeviceBuffer> d_;
   DeviceBuffer<units_t>& units(fields::Id id) { return d_.units[id]; }
   DeviceBuffer<float>& reals(fields::Id id) { return d_.reals[id]; }
   bool any_obstacles_ = false;  // on this tile or its ghosts (saltation's slow path)
-  void obstacles_changed();     // refills the ghosts, updates any_obstacles_
   // reptation / avalanching work buffers
   DeviceBuffer<units_t> sand_next_;
   DeviceBuffer<float> h_a_, h_b_, frac_;

@@ -30,15 +30,11 @@ __global__ void reptation_kernel(TileGeom g, int grow, Offsets off, float k_r,
 }  // namespace
 
 void CudaBackend::reptation() {
-  // One exchange for reptation and avalanching together (as on the CPU):
-  // the layers and impact strengths with the avalanching halo plus one;
-  // reptation runs on the tile grown by the avalanching halo.
-  const int w = m_.halo_avalanche_first() + 1;
-  fill(d_.sand, w);
-  fill(d_.bedrock, w);
+  // The layers and impact strengths come with the avalanching halo plus one
+  // (fields::Reach::kReptation, one exchange before this stage, as on the
+  // CPU); reptation runs on the tile grown by the avalanching halo.
   if (m_.reptation_k <= 0.0f) return;
-  fill(d_.reptation, w);
-  const int grow = w - 1;
+  const int grow = m_.ghost_width(fields::Reach::kReptation) - 1;
   const Launch l = grown_cells(g_, grow);
   ERG_LAUNCH(reptation_kernel, l.grid, l.block, g_, grow, neighbour_offsets(g_.pitch),
              m_.reptation_k, d_.bedrock.get(), d_.sand.get(), d_.reptation.get(),

@@ -112,7 +112,7 @@ __global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t see
 
 }  // namespace
 
-void CudaBackend::saltation(std::int64_t step) {
+void CudaBackend::saltation_hop(std::int64_t step) {
   const saltation::Params p = m_.saltation;
   const std::uint64_t seed = m_.seed;
   const auto ustep = static_cast<std::uint64_t>(step);
@@ -124,9 +124,15 @@ void CudaBackend::saltation(std::int64_t step) {
   ERG_CUDA_CHECK(cudaMemsetAsync(d_.landed.get(), 0, d_.landed.bytes()));
   ERG_LAUNCH(scatter_kernel, l.grid, l.block, g_, p, seed, ustep, d_.airborne.get(),
              d_.wind_x.get(), d_.wind_y.get(), d_.obstacles.get(), any_obstacles_, d_.landed.get());
-  // Sand that left the tile re-enters on the opposite side (the torus).
-  sum(d_.landed, m_.halo_saltation());
+}
 
+// After the landed ghosts are summed into their owners (Simulation::step):
+// sand that left the tile re-enters on the opposite side (the torus).
+void CudaBackend::saltation_impact(std::int64_t step) {
+  const saltation::Params p = m_.saltation;
+  const std::uint64_t seed = m_.seed;
+  const auto ustep = static_cast<std::uint64_t>(step);
+  const Launch l = owned_cells(g_);
   ERG_LAUNCH(impact_kernel, l.grid, l.block, g_, p, seed, ustep, d_.landed.get(), d_.sand.get(),
              d_.bedrock.get(), d_.airborne.get(), d_.shadow.get(), d_.vegetation.get(),
              d_.resistance.get(), d_.wind_x.get(), d_.wind_y.get(), d_.echo.get(),

@@ -136,19 +136,23 @@ void CudaBackend::coarse_gradients() {
   }
 }
 
-void CudaBackend::wind(Vec2 a) {
+void CudaBackend::heights() {
   const CoarseGrid& c = m_.coarse;
   const Launch cells = owned_cells(g_);
-  // Heights in metres (owned + the ghosts the shadow march reads).
+  // Heights in metres at the owned cells (the step fills the ghosts the
+  // shadow march reads).
   ERG_LAUNCH(heights_kernel, cells.grid, cells.block, g_, d_.bedrock.get(), d_.sand.get(),
              d_.obstacles.get(), d_.height_m.get());
-  fill(d_.height_m, m_.halo_shadow());
-
   // Exact block sums of this tile's coarse cells; every tile gets the whole
   // coarse grid (the same integer sums whatever the tiling).
   const int tcnx = g_.nx / c.cx, tcny = g_.ny / c.cy;
   ERG_LAUNCH(coarse_sum_kernel, dim3(static_cast<unsigned>(tcnx * tcny)), dim3(kCoarseThreads), g_,
              c, tcnx, d_.bedrock.get(), d_.sand.get(), d_.obstacles.get(), coarse_mine_.get());
+}
+
+void CudaBackend::wind(Vec2 a) {
+  const CoarseGrid& c = m_.coarse;
+  const Launch cells = owned_cells(g_);
   std::vector<double> mine(coarse_mine_.size()), all;
   ERG_CUDA_CHECK(
       cudaMemcpy(mine.data(), coarse_mine_.get(), coarse_mine_.bytes(), cudaMemcpyDeviceToHost));
