@@ -30,4 +30,18 @@ std::string to_json(const google::protobuf::Message& m, bool indent, bool all_fi
 // "step 120/2000 (6%), 3.21 steps/s, ETA 9:47"
 std::string progress_text(const erg::v1::Progress& p);
 
+// Sand in m³ from an exact total of units of 2^-32 m summed over cells of
+// cell_size_m: "1234.5 m³".
+std::string sand_volume_text(const std::string& units, double cell_size_m);
+
+// "486 m³ on the ground + 0.01 m³ airborne [486035157178871 + 9 units of
+// 2^-32 m x cell area]"; "" when the record has no totals yet.
+std::string sand_text(const erg::v1::Progress& p, double cell_size_m);
+
+// "at steps 0, 500, 1000" (a long list shortened in the middle).
+std::string steps_text(const google::protobuf::RepeatedField<std::int64_t>& steps);
+
+// Where the worker runs: "pid 2880 on HOST", "Slurm job 123 (RUNNING)".
+std::string worker_text(const erg::v1::Job& job);
+
 }  // namespace erg::client

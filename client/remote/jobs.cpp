@@ -114,6 +114,11 @@ int cmd_status(Remote& remote, const std::vector<std::string>& args) {
   row("progress", j.state() == erg::v1::RUNNING ? progress_text(pr)
                                                 : "step " + std::to_string(pr.step()) + "/" +
                                                       std::to_string(pr.total_steps()));
+  if (pr.time_years() > 0) {
+    char sim[64];
+    std::snprintf(sim, sizeof sim, "%.3g years (%.4g days)", pr.time_years(), pr.time_days());
+    row("simulated", sim);
+  }
   row("domain",
       std::to_string(s.domain().nx()) + " x " + std::to_string(s.domain().ny()) + " cells");
   row("resources", std::to_string(std::max(1, j.resources().ranks())) + " rank(s), " +
@@ -123,18 +128,12 @@ int cmd_status(Remote& remote, const std::vector<std::string>& args) {
   row("created", fmt_time_ms(j.created_unix_ms()));
   row("started", fmt_time_ms(j.started_unix_ms()));
   row("finished", fmt_time_ms(j.finished_unix_ms()));
-  std::string snaps;
-  for (const auto step : j.snapshot_steps()) {
-    if (!snaps.empty()) snaps += ' ';
-    snaps += std::to_string(step);
-  }
-  row("snapshots", snaps.empty() ? "none yet" : snaps);
-  if (!pr.sand_units_total().empty())
-    row("sand", pr.sand_units_total() + " units on the ground + " + pr.airborne_units_total() +
-                    " airborne (2^-32 m)");
+  row("snapshots", steps_text(j.snapshot_steps()));
+  if (const std::string sand = sand_text(pr, s.domain().cell_size_m()); !sand.empty())
+    row("sand", sand);
   row("disk", fmt_bytes(static_cast<double>(j.disk_bytes())));
   row("attempts", std::to_string(j.attempts()));
-  if (!j.launcher_id().empty()) row("launcher", j.launcher_id());
+  if (const std::string w = worker_text(j); !w.empty()) row("worker", w);
   if (!j.idempotency_key().empty()) row("key", j.idempotency_key());
   if (!j.failure_reason().empty()) row("reason", j.failure_reason());
   if (j.state() == erg::v1::FAILED && !j.log_tail().empty()) {

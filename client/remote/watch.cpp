@@ -120,11 +120,8 @@ int watch_job(Remote& remote, const std::string& id, const std::string& command,
   switch (final_state) {
     case erg::v1::SUCCEEDED:
       std::cerr << "erg: " << id << " SUCCEEDED at step " << pr.step();
-      if (!pr.sand_units_total().empty()) {
-        std::cerr << "; exact sand total " << pr.sand_units_total() << " units on the ground";
-        if (!pr.airborne_units_total().empty())
-          std::cerr << " + " << pr.airborne_units_total() << " airborne";
-      }
+      if (const std::string sand = sand_text(pr, job.spec().domain().cell_size_m()); !sand.empty())
+        std::cerr << "; sand " << sand;
       std::cerr << "\n";
       if (job.snapshot_steps_size() > 0)
         std::cerr << "erg: " << job.snapshot_steps_size() << " snapshot(s): erg fetch " << id

@@ -86,10 +86,16 @@ grpc::Status JobService::call(const char* method, grpc::ServerContext* ctx, F&& 
   std::optional<std::string> who;
   if (it != md.end())
     who = tokens_.tenant_of_header(std::string(it->second.data(), it->second.size()));
-  if (!who) {
+  if (!who && it == md.end()) {
     status = grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
-                          "a bearer token from ergd's tokens file is required "
+                          "no token: every call needs a bearer token from ergd's tokens file "
                           "(metadata `authorization: Bearer TOKEN`)");
+  } else if (!who) {
+    const bool bearer = std::string(it->second.data(), it->second.size()).rfind("Bearer ", 0) == 0;
+    status = grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
+                          bearer ? "the token is not one of ergd's tokens (mistyped, or no "
+                                   "longer in ergd's tokens file)"
+                                 : "the authorization metadata is not `Bearer TOKEN`");
   } else {
     try {
       status = body(*who);

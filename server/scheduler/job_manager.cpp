@@ -157,7 +157,48 @@ std::string JobManager::log_tail(const std::string& id, int lines) const {
   return out;
 }
 
+namespace {
+
+std::string host_name() {
+  char buf[256] = "";
+  if (::gethostname(buf, sizeof buf - 1) != 0) return "this machine";
+  return buf;
+}
+
+// What ergd's log says of an event, or "" for the events that are no
+// transition (progress, steering, notes).
+std::string transition_text(const Job& job, const JobEvent& ev) {
+  const std::string at = " at step " + std::to_string(job.progress().step());
+  if (ev.kind_case() == JobEvent::kSnapshotStep)
+    return "snapshot at step " + std::to_string(ev.snapshot_step());
+  if (ev.kind_case() != JobEvent::kStateChanged) return "";
+  switch (ev.state_changed()) {
+    case erg::v1::QUEUED:
+      return job.started_unix_ms() == 0 ? "submitted (queued)" : "queued again" + at;
+    case erg::v1::RUNNING:
+      return job.attempts() > 1 ? "started (attempt " + std::to_string(job.attempts()) + ")"
+                                : "started";
+    case erg::v1::SUCCEEDED:
+      return "succeeded" + at;
+    case erg::v1::FAILED: {
+      std::string why = job.failure_reason();
+      std::replace(why.begin(), why.end(), '\n', ' ');
+      return "failed" + at + ": " + (why.empty() ? "no reason given" : why);
+    }
+    case erg::v1::CANCELLED:
+      return "cancelled" + at;
+    default:
+      return "";
+  }
+}
+
+}  // namespace
+
 void JobManager::event_locked(const Job& job, JobEvent ev) {
+  // One line per transition, with the job and its tenant.
+  if (const std::string what = transition_text(job, ev); !what.empty())
+    std::cerr << "ergd: job " << job.id() << " (tenant " << job.tenant() << "): " << what
+              << std::endl;
   ev.set_state(job.state());
   store_.append_event(job.id(), std::move(ev));
 }
@@ -607,6 +648,7 @@ void JobManager::launch_locked(Job job) {
   }
   r.resumed = has_checkpoint;
   job.set_launcher_id(r.launcher_id);
+  job.set_launcher_host(launcher_.reattachable() ? "" : host_name());
   job.set_launcher(launcher_.name());
   job.set_launcher_offset(0);
   job.set_launcher_state("");
@@ -680,6 +722,7 @@ void JobManager::on_event(const std::string& id, const erg::v1::WorkerEvent& ev,
         p.set_steps_per_s(q.steps_per_s());
         p.set_eta_s(q.eta_s());
         p.set_time_days(q.time_days());
+        p.set_time_years(q.time_years());
         metrics_.set_rate(id, r.job.tenant(), p.steps_per_s());
       } else {
         p.set_eta_s(0);

@@ -13,6 +13,7 @@ import re
 import shlex
 import shutil
 import signal
+import socket
 import subprocess
 import tempfile
 import time
@@ -158,7 +159,8 @@ class Cli(CliTest):
         self.assertIn("erg: submitted 'cli' (64 x 64 cells, 40 steps) to %s as %s, QUEUED"
                       % (self.ergd.addr, job_id), err)
         self.assertIn("erg: snapshot at step 40", err)
-        self.assertIn("erg: %s SUCCEEDED at step 40; exact sand total" % job_id, err)
+        self.assertRegex(err, r"erg: %s SUCCEEDED at step 40; sand \d+\.\d\d m³ on the ground "
+                              r"\+ \S+ m³ airborne \[\d+ \+ \d+ units" % job_id)
         self.assertIn("erg fetch %s --all --out DIR" % job_id, err)
         self.assertEqual(self.ergd.get(job_id).state, S.SUCCEEDED)
         # The latest snapshot.
@@ -243,6 +245,20 @@ class Cli(CliTest):
         self.assertSameSnapshot(out.strip(), os.path.join(self.reference(), "step_00000040.h5"))
         self.assertEqual(self.ergd.wait(other).state, S.SUCCEEDED)
 
+    def test_status_shows_simulated_years_where_the_worker_reports_them(self):
+        # Physical units: a wind of u* = 0.4 m/s; the worker measures the time
+        # a step represents and reports years.
+        d = spec_json(name="physical", steps=10, snapshot_every=10,
+                      wind={"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.4}})
+        job_id = self.submit(d)
+        j = self.ergd.wait(job_id, timeout=300)
+        self.assertEqual(j.state, S.SUCCEEDED, j.failure_reason)
+        self.assertGreater(j.progress.time_years, 0)
+        code, out, err = self.erg("status", job_id)
+        self.assertEqual(code, 0, err)
+        rows = dict(re.match(r"(\S+)\s+(.*)$", line).groups() for line in out.splitlines())
+        self.assertRegex(rows["simulated"], r"^\S+ years \(\S+ days\)$")
+
     def test_status_human_and_json(self):
         job_id = self.submit(spec_json(name="shown", steps=20, snapshot_every=10), "--key",
                              "shown-key")
@@ -256,10 +272,19 @@ class Cli(CliTest):
         self.assertEqual(rows["progress"], "step 20/20")
         self.assertEqual(rows["domain"], "64 x 64 cells")
         self.assertEqual(rows["resources"], "1 rank(s), 1 thread(s) each")
-        self.assertEqual(rows["snapshots"], "0 10 20")
+        self.assertEqual(rows["snapshots"], "at steps 0, 10, 20")
         self.assertEqual(rows["attempts"], "1")
         self.assertEqual(rows["key"], "shown-key")
-        self.assertRegex(rows["sand"], r"^\d+ units on the ground \+ \d+ airborne")
+        # m³, the exact units in brackets; where the worker runs.
+        self.assertRegex(rows["sand"], r"^\d+\.\d\d m³ on the ground \+ \S+ m³ airborne "
+                                       r"\[\d+ \+ \d+ units of 2\^-32 m x cell area\]$")
+        self.assertRegex(rows["worker"], r"^pid \d+ on %s$" % re.escape(socket.gethostname()))
+        self.assertRegex(rows["simulated"], r"^\S+ years \(200 days\)$")  # 20 steps x 10 days
+        # ergd's log: a line per transition, with the job and its tenant.
+        with open(self.ergd.log) as f:
+            log = f.read()
+        for what in ("submitted (queued)", "started", "snapshot at step 10", "succeeded at step 20"):
+            self.assertIn("ergd: job %s (tenant alice): %s\n" % (job_id, what), log)
         self.assertRegex(rows["disk"], r"KiB|MiB")
         d = self.status_json(job_id)
         self.assertEqual(d["id"], job_id)
@@ -305,10 +330,12 @@ class Cli(CliTest):
         self.assertEqual((code, out), (4, ""))
         self.assertEqual(len(err.splitlines()), 1, err)
         self.assertTrue(err.startswith("erg: jobs: UNAUTHENTICATED: "), err)
+        self.assertIn("the token is not one of ergd's tokens", err)
         env = {k: v for k, v in self.env.items() if k != "ERG_TOKEN"}
         code, _, err = self.erg("status", job_id, env=env)
         self.assertEqual(code, 4)
         self.assertIn("no token given", err)
+        self.assertIn("UNAUTHENTICATED: no token: every call needs a bearer token", err)
         # Another tenant's job is as absent as one that never was.
         for cmd in (["status", job_id], ["watch", job_id], ["cancel", job_id],
                     ["fetch", job_id, "--out", self.fetch_dir()]):

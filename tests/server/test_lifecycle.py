@@ -50,6 +50,9 @@ class Queue(ErgdTest):
         j = e.wait(a1.id, timeout=60)
         self.assertEqual(j.state, S.CANCELLED)
         self.assertLess(j.progress.step, 3000)
+        with open(e.log) as f:
+            self.assertRegex(f.read(), r"ergd: job %s \(tenant alice\): cancelled at step \d+\n"
+                             % a1.id)
         ckpts = os.listdir(os.path.join(e.data, "jobs", a1.id, "run", "checkpoints"))
         self.assertTrue([c for c in ckpts if c.endswith(".h5")])
         # Fair: Bob's job (submitted after a2) starts before Alice's second.
@@ -164,6 +167,10 @@ class DiskLimit(ErgdTest):
         self.assertIn("--max-job-disk", j.failure_reason)
         self.assertIn("run.snapshot_every", j.failure_reason)
         self.assertTrue(j.log_tail)  # the worker's last words
+        # ergd's log says why, on the job's line.
+        with open(self.ergd.log) as f:
+            self.assertRegex(f.read(), r"ergd: job %s \(tenant alice\): failed at step \d+: "
+                             r"[^\n]*--max-job-disk" % job.id)
 
 
 class ForcedCancel(ErgdTest):
