@@ -299,7 +299,15 @@ std::optional<Identity> HttpApi::identity_of(const httplib::Request& req, httpli
   if (!who) {
     res.status = 401;
     res.set_header("WWW-Authenticate", "Bearer realm=\"ergd\"");
-    res.set_content("a bearer token from ergd's tokens file is required\n", "text/plain");
+    // A missing token and a wrong one are told apart.
+    res.set_content(req.has_header("Authorization")
+                        ? "the token is not one of ergd's tokens (mistyped, or no longer in "
+                          "ergd's tokens file)\n"
+                    : cookie_value(req, kSessionCookie).empty()
+                        ? "no token: a bearer token from ergd's tokens file is required\n"
+                        : "the session has ended (ergd restarted, or it timed out); sign in "
+                          "again\n",
+                    "text/plain");
   }
   return who;
 }

@@ -51,6 +51,10 @@ class Http(ErgdTest):
             self.assertIn("Bearer", headers.get("WWW-Authenticate", ""))
             self.assertEqual(get(self.ergd.http + path, "wrong-token-0123456789")[0], 401)
         self.assertEqual(get(self.ergd.http + "/login?token=wrong-token-0123456789")[0], 401)
+        # The two are told apart.
+        self.assertIn(b"no token", get(self.ergd.http + "/api/jobs")[1])
+        self.assertIn(b"not one of ergd's tokens",
+                      get(self.ergd.http + "/api/jobs", "wrong-token-0123456789")[1])
 
     def test_sign_in_form_posts_the_token_into_a_session_cookie(self):
         # A browser without a session gets a 401 carrying the sign-in form,
