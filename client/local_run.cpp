@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <sstream>
@@ -25,6 +26,7 @@
 #include "job/spec.h"
 #include "job/worker_event.h"
 #include "progress_bar.h"
+#include "remote/common.h"
 #include "sim/calibration.h"
 
 namespace erg::client {
@@ -47,6 +49,18 @@ namespace {
 pid_t g_child = -1;
 extern "C" void forward_signal(int sig) {
   if (g_child > 0) ::kill(g_child, sig);
+}
+
+// The cell size of the run in out_dir (its job.json), 0 if unreadable.
+double cell_size_of_run(const std::string& out_dir) {
+  try {
+    std::ifstream f(out_dir + "/job.json", std::ios::binary);
+    std::stringstream text;
+    text << f.rdbuf();
+    return erg::job::parse_json(text.str()).domain().cell_size_m();
+  } catch (const std::exception&) {
+    return 0;
+  }
 }
 
 // What `erg run` shows of one worker event (proto/erg/v1/worker.proto).
@@ -83,9 +97,11 @@ void show_event(const erg::v1::WorkerEvent& ev, ProgressBar& bar, const std::str
                       static_cast<double>(d.peak_rss_bytes()) / 1073741824.0);
         std::cerr << line;
       }
-      std::cerr << "erg: done at step " << ev.step() << "; exact sand total "
-                << d.totals().sand_units_total() << " units on the ground + "
-                << d.totals().airborne_units_total() << " airborne\n";
+      erg::v1::Progress totals;
+      totals.set_sand_units_total(d.totals().sand_units_total());
+      totals.set_airborne_units_total(d.totals().airborne_units_total());
+      std::cerr << "erg: done at step " << ev.step() << "; sand "
+                << sand_text(totals, cell_size_of_run(out_dir)) << "\n";
       break;
     }
     case Kind::kFailed:

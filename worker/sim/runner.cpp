@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 
@@ -160,69 +161,82 @@ std::vector<std::string> steer_problems(erg::v1::JobSpec check, const erg::v1::E
 // start of `step` after the events of `spec`. Bad ones are renamed
 // NAME.rejected and reported here; the good ones are renamed by the caller
 // once they are recorded.
-std::vector<SteerFile> collect_steering(const std::string& dir, const erg::v1::JobSpec& spec,
-                                        std::int64_t step, Progress& progress, bool log) {
+// The NAME.json files in `dir` not in `seen`, in name order.
+std::vector<std::string> new_steer_files(const std::string& dir, std::set<std::string>& seen) {
   std::vector<std::string> names;
   std::error_code ec;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    if (name.size() > 5 && name[0] != '.' && name.compare(name.size() - 5, 5, ".json") == 0)
+    if (name.size() > 5 && name[0] != '.' && name.compare(name.size() - 5, 5, ".json") == 0 &&
+        seen.insert(name).second)
       names.push_back(name);
   }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+std::vector<SteerFile> collect_steering(const std::string& dir, const erg::v1::JobSpec& spec,
+                                        std::int64_t step, Progress& progress, bool log) {
+  std::set<std::string> seen;
+  std::vector<std::string> names = new_steer_files(dir, seen);
   std::vector<SteerFile> good;
   if (names.empty()) return good;
-  std::sort(names.begin(), names.end());
   // Validation without the layers: an event cannot change them, they were
   // checked when the run began, and their map files need not be read again.
   erg::v1::JobSpec check = spec;
   check.clear_layers();
   job::apply_defaults(check);
-  for (const auto& name : names) {
-    const fs::path path = fs::path(dir) / name;
-    std::string reason;
-    SteerFile f{name, {}};
-    const fs::file_status st = fs::status(path, ec);
-    if (ec || !fs::exists(st)) continue;  // taken away meanwhile
-    if (!fs::is_regular_file(st)) {
-      reason = "not a regular file";
-    } else if (fs::file_size(path, ec) > kMaxSteerFileBytes) {
-      reason = "larger than 1 MiB";
-    } else {
-      std::ifstream in(path, std::ios::binary);
-      if (!in) continue;  // taken away meanwhile
-      std::stringstream text;
-      text << in.rdbuf();
-      google::protobuf::util::JsonParseOptions opt;
-      opt.ignore_unknown_fields = false;
-      opt.case_insensitive_enum_parsing = true;
-      const auto parsed = google::protobuf::util::JsonStringToMessage(text.str(), &f.event, opt);
-      if (!parsed.ok()) {
-        reason = "not a valid erg.v1.Event: " + std::string(parsed.message());
+  std::error_code ec;
+  // A writer publishing several files at once (ergd's SteerJob) renames
+  // them one after the other: once the files found are taken the directory
+  // is read again, so that a batch is taken at one step (a few reads at most).
+  for (int round = 0; round < 4 && !names.empty(); ++round, names = new_steer_files(dir, seen))
+    for (const auto& name : names) {
+      const fs::path path = fs::path(dir) / name;
+      std::string reason;
+      SteerFile f{name, {}};
+      const fs::file_status st = fs::status(path, ec);
+      if (ec || !fs::exists(st)) continue;  // taken away meanwhile
+      if (!fs::is_regular_file(st)) {
+        reason = "not a regular file";
+      } else if (fs::file_size(path, ec) > kMaxSteerFileBytes) {
+        reason = "larger than 1 MiB";
       } else {
-        f.event.set_step(step);
-        erg::v1::JobSpec filled;  // the event's defaults
-        *filled.add_events() = f.event;
-        job::apply_defaults(filled);
-        f.event = filled.events(0);
-        const auto problems = steer_problems(check, f.event);
-        for (const auto& p : problems) reason += (reason.empty() ? "" : "; ") + p;
+        std::ifstream in(path, std::ios::binary);
+        if (!in) continue;  // taken away meanwhile
+        std::stringstream text;
+        text << in.rdbuf();
+        google::protobuf::util::JsonParseOptions opt;
+        opt.ignore_unknown_fields = false;
+        opt.case_insensitive_enum_parsing = true;
+        const auto parsed = google::protobuf::util::JsonStringToMessage(text.str(), &f.event, opt);
+        if (!parsed.ok()) {
+          reason = "not a valid erg.v1.Event: " + std::string(parsed.message());
+        } else {
+          f.event.set_step(step);
+          erg::v1::JobSpec filled;  // the event's defaults
+          *filled.add_events() = f.event;
+          job::apply_defaults(filled);
+          f.event = filled.events(0);
+          const auto problems = steer_problems(check, f.event);
+          for (const auto& p : problems) reason += (reason.empty() ? "" : "; ") + p;
+        }
       }
+      if (reason.empty()) {
+        *check.add_events() = f.event;
+        good.push_back(std::move(f));
+        continue;
+      }
+      mark_steer_file(dir, name, ".rejected");
+      if (log)
+        std::cerr << "erg: steering " << name << " rejected at step " << step << ": " << reason
+                  << "\n";
+      erg::v1::WorkerEvent ev;
+      ev.set_step(step);
+      ev.mutable_steer_rejected()->set_file(job::valid_utf8(name));
+      ev.mutable_steer_rejected()->set_reason(job::valid_utf8(reason));
+      progress.emit(ev);
     }
-    if (reason.empty()) {
-      *check.add_events() = f.event;
-      good.push_back(std::move(f));
-      continue;
-    }
-    mark_steer_file(dir, name, ".rejected");
-    if (log)
-      std::cerr << "erg: steering " << name << " rejected at step " << step << ": " << reason
-                << "\n";
-    erg::v1::WorkerEvent ev;
-    ev.set_step(step);
-    ev.mutable_steer_rejected()->set_file(job::valid_utf8(name));
-    ev.mutable_steer_rejected()->set_reason(job::valid_utf8(reason));
-    progress.emit(ev);
-  }
   return good;
 }
 
