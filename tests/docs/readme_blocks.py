@@ -79,6 +79,11 @@ class Scratch:
         return subprocess.run(["bash", "-e", "-c", block.code], cwd=self.dir, env=self.env,
                               capture_output=True, text=True, timeout=timeout)
 
+    def run_python(self, block, timeout=600):
+        """Runs a ```python block with python3 in the scratch root."""
+        return subprocess.run(["python3", "-c", block.code], cwd=self.dir, env=self.env,
+                              capture_output=True, text=True, timeout=timeout)
+
     def cleanup(self):
         shutil.rmtree(self.dir, ignore_errors=True)
 
