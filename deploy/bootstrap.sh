@@ -37,6 +37,8 @@ packages=(
   systemd
   # the Python gRPC client of the service tests, and the dashboard test
   python3-grpcio python3-protobuf chromium openssl
+  # the dashboard test drives Chromium with Selenium
+  chromium-driver python3-selenium
   # readers of the snapshots as netCDF-4/CF (xarray over h5netcdf, with dask for
   # open_mfdataset; ncdump), and
   # ParaView's pvbatch (under a virtual X server) for the XDMF test

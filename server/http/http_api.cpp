@@ -4,12 +4,19 @@
 #include <httplib.h>
 #include <sys/socket.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <sstream>
 
 #include "auth/request_checks.h"
+#include "core/fields.h"
+#include "dashboard_assets.h"
+#include "io/io.h"
 
 namespace erg::server {
 
@@ -49,6 +56,62 @@ std::string job_json(erg::v1::Job job, bool with_spec) {
   opt.always_print_primitive_fields = true;
   (void)google::protobuf::util::MessageToJsonString(job, &out, opt);
   return out;
+}
+
+std::string message_json(const google::protobuf::Message& m) {
+  std::string out;
+  google::protobuf::util::JsonPrintOptions opt;
+  opt.preserve_proto_field_names = true;
+  (void)google::protobuf::util::MessageToJsonString(m, &out, opt);
+  return out;
+}
+
+// The HTTP status of a refused call (the gRPC code of the same refusal).
+int http_status(grpc::StatusCode c) {
+  switch (c) {
+    case grpc::StatusCode::NOT_FOUND:
+      return 404;
+    case grpc::StatusCode::INVALID_ARGUMENT:
+      return 400;
+    case grpc::StatusCode::PERMISSION_DENIED:
+      return 403;
+    case grpc::StatusCode::FAILED_PRECONDITION:
+      return 409;
+    case grpc::StatusCode::RESOURCE_EXHAUSTED:
+      return 429;
+    default:
+      return 500;
+  }
+}
+
+void refuse(httplib::Response& res, const ApiError& e) {
+  res.status = http_status(e.code);
+  res.set_content(std::string(e.what()) + "\n", "text/plain");
+}
+
+// The list page's state filters: ?state=NAME, as `erg jobs --state NAME`.
+constexpr const char* kStateFilters[] = {"queued", "running", "succeeded", "failed", "cancelled"};
+
+// The job page: a frame that server/http/assets/job.js fills from the API.
+std::string job_page(const erg::v1::Job& j) {
+  const std::string id = html_escape(j.id());
+  std::ostringstream o;
+  o << "<!doctype html>\n<html><head><meta charset=\"utf-8\"><title>erg job " << id
+    << "</title>\n<link rel=\"stylesheet\" href=\"/static/dashboard.css\"></head>\n"
+    << "<body data-job=\"" << id << "\">\n<p><a href=\"/\" id=\"all-jobs\">all jobs</a></p>\n"
+    << "<h1>" << html_escape(j.spec().name().empty() ? j.id() : j.spec().name()) << " <small><code>"
+    << id << "</code></small> <span id=\"state\"></span></h1>\n"
+    << "<p id=\"summary\"></p>\n"
+    << "<div id=\"controls\"><button id=\"cancel\" type=\"button\">Cancel job</button>"
+    << "<textarea id=\"steer-event\" aria-label=\"steering event\">"
+    << "{\"sand\": {\"x_m\": 20, \"y_m\": 40, \"radius_m\": 6, \"height\": 1.5}}</textarea> "
+    << "<button id=\"steer\" type=\"button\">Steer</button> <span id=\"control-result\"></span>"
+    << "</div>\n<figure><img id=\"preview\" alt=\"no preview yet\">"
+    << "<figcaption id=\"preview-caption\"></figcaption></figure>\n"
+    << "<label>snapshot <input type=\"range\" id=\"slider\" min=\"0\" max=\"0\" value=\"0\">"
+    << "</label>\n<div id=\"plots\"></div>\n<h2>Events and steering</h2>\n"
+    << "<table id=\"events\"></table>\n<script src=\"/static/job.js\"></script>\n</body></html>\n";
+  return o.str();
 }
 
 constexpr const char* kSessionCookie = "erg_session";
@@ -227,10 +290,19 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
           try {
             check_job_id(req.matches[1]);
             const auto job = mgr_.get(*tenant, req.matches[1]);
-            std::ifstream f(mgr_.preview_path(job.id(), job.progress().latest_snapshot_step()),
-                            std::ios::binary);
-            if (job.progress().latest_snapshot_step() < 0 || !f)
-              throw ApiError(grpc::StatusCode::NOT_FOUND, "no preview yet");
+            std::int64_t step = job.progress().latest_snapshot_step();
+            if (req.has_param("step")) {
+              // Only a step the job wrote a snapshot at names a file.
+              const std::string v = req.get_param_value("step");
+              step = -1;
+              for (auto s : job.snapshot_steps())
+                if (std::to_string(s) == v) step = s;
+              if (step < 0)
+                throw ApiError(grpc::StatusCode::NOT_FOUND,
+                               "no snapshot at step " + echo_id(v) + " of this job");
+            }
+            std::ifstream f(mgr_.preview_path(job.id(), step), std::ios::binary);
+            if (step < 0 || !f) throw ApiError(grpc::StatusCode::NOT_FOUND, "no preview yet");
             std::stringstream ss;
             ss << f.rdbuf();
             res.set_header("Cache-Control", "no-store");
@@ -241,6 +313,94 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
           }
         });
 
+  // A route about one of the caller's jobs: authenticated, the id checked,
+  // a refused call answered with its HTTP status; a POST must come from
+  // ergd's own pages (cross-site requests are refused).
+  using JobHandler = std::function<void(const std::string& tenant, const std::string& id,
+                                        const httplib::Request&, httplib::Response&)>;
+  auto job_route = [this, tenant_of](bool post, JobHandler h) {
+    return [this, tenant_of, post, h](const httplib::Request& req, httplib::Response& res) {
+      if (post && !same_origin(req, tls_))
+        return refuse(res,
+                      ApiError(grpc::StatusCode::PERMISSION_DENIED, "cross-site request refused"));
+      auto tenant = tenant_of(req, res);
+      if (!tenant) return;
+      try {
+        check_job_id(req.matches[1]);
+        h(*tenant, req.matches[1], req, res);
+      } catch (const ApiError& e) {
+        refuse(res, e);
+      }
+    };
+  };
+
+  // The job page and what it draws: the events (progress, states,
+  // snapshots, steering, notes), the relief at each snapshot, the assets.
+  s.Get(R"(/jobs/([A-Za-z0-9-]+))",
+        job_route(false, [this](const std::string& tenant, const std::string& id,
+                                const httplib::Request&, httplib::Response& res) {
+          res.set_content(job_page(mgr_.get(tenant, id)), "text/html; charset=utf-8");
+        }));
+  s.Get("/static/job.js", [tenant_of](const httplib::Request& req, httplib::Response& res) {
+    if (tenant_of(req, res)) res.set_content(assets::kJobJs, "text/javascript; charset=utf-8");
+  });
+  s.Get("/static/dashboard.css", [tenant_of](const httplib::Request& req, httplib::Response& res) {
+    if (tenant_of(req, res)) res.set_content(assets::kDashboardCss, "text/css; charset=utf-8");
+  });
+  s.Get(R"(/api/jobs/([A-Za-z0-9-]+)/events)",
+        job_route(false, [this](const std::string& tenant, const std::string& id,
+                                const httplib::Request&, httplib::Response& res) {
+          const auto job = mgr_.get(tenant, id);
+          std::string out = "[";
+          for (const auto& e : mgr_.store().events_after(job.id(), 0, 20000)) {
+            if (out.size() > 1) out += ',';
+            out += message_json(e);
+          }
+          res.set_content(out + "]\n", "application/json");
+        }));
+  s.Get(R"(/api/jobs/([A-Za-z0-9-]+)/relief)",
+        job_route(false, [this](const std::string& tenant, const std::string& id,
+                                const httplib::Request&, httplib::Response& res) {
+          res.set_content(relief_json(mgr_.get(tenant, id)), "application/json");
+        }));
+  // Controls of the job page, for the job's own tenant (another tenant's id
+  // is NOT_FOUND, as everywhere).
+  s.Post(R"(/api/jobs/([A-Za-z0-9-]+)/cancel)",
+         job_route(true, [this](const std::string& tenant, const std::string& id,
+                                const httplib::Request&, httplib::Response& res) {
+           const auto job = mgr_.cancel(tenant, id);
+           res.set_content("cancel requested: " + erg::v1::JobState_Name(job.state()) + "\n",
+                           "text/plain");
+         }));
+  s.Post(R"(/api/jobs/([A-Za-z0-9-]+)/steer)",
+         job_route(true, [this](const std::string& tenant, const std::string& id,
+                                const httplib::Request& req, httplib::Response& res) {
+           // One erg.v1.Event or an array of them, as `erg steer`.
+           const std::string& body = req.body;
+           const auto first = body.find_first_not_of(" \t\r\n");
+           const bool array = first != std::string::npos && body[first] == '[';
+           erg::v1::SteerJobRequest parsed;
+           const auto st = google::protobuf::util::JsonStringToMessage(
+               "{\"events\": " + (array ? body : "[" + body + "]") + "}", &parsed);
+           if (!st.ok() || parsed.events().empty()) {
+             std::string why =
+                 "the body must be an erg.v1.Event or an array of them in protobuf JSON";
+             if (!st.ok()) {
+               why += ": ";
+               why += std::string(st.message());
+             }
+             throw ApiError(grpc::StatusCode::INVALID_ARGUMENT, why);
+           }
+           const std::vector<erg::v1::Event> events(parsed.events().begin(), parsed.events().end());
+           const auto r = mgr_.steer(tenant, id, events);
+           std::string out = "applied";
+           for (const auto& e : r.applied()) {
+             out += ' ';
+             out += message_json(e);
+           }
+           res.set_content(out + "\n", "text/plain");
+         }));
+
   s.Get("/", [this, tenant_of](const httplib::Request& req, httplib::Response& res) {
     auto tenant = tenant_of(req, res);
     if (!tenant) {
@@ -248,23 +408,41 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
       res.set_content(kLoginPage, "text/html; charset=utf-8");
       return;
     }
+    int state_filter = 0;  // JOB_STATE_UNSPECIFIED: every state
+    const std::string want = req.has_param("state") ? req.get_param_value("state") : "";
+    std::ostringstream filters;
+    filters << "<p id=\"filters\">show: <a href=\"/\"" << (want.empty() ? " class=\"on\"" : "")
+            << ">all</a>";
+    for (const char* f : kStateFilters) {
+      std::string upper = f;
+      for (auto& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+      if (want == f) {
+        erg::v1::JobState st{};
+        if (erg::v1::JobState_Parse(upper, &st)) state_filter = st;
+      }
+      filters << " <a href=\"/?state=" << f << "\"" << (want == f ? " class=\"on\"" : "") << ">"
+              << f << "</a>";
+    }
+    filters << "</p>\n";
     std::ostringstream o;
     o << kPage << "<h1>erg jobs of " << html_escape(*tenant) << "</h1>\n"
+      << filters.str()
       << "<form method=\"post\" action=\"/logout\" id=\"logout\"><button type=\"submit\">"
          "Sign out</button></form>\n<table id=\"jobs\">\n"
       << "<tr><th>job</th><th>name</th><th>state</th><th>progress</th><th>steps/s</th>"
          "<th>runs on</th><th>preview</th></tr>\n";
     std::int64_t last = 0;
-    const auto jobs = mgr_.list(*tenant, 0, 0, 200, &last);
+    const auto jobs = mgr_.list(*tenant, state_filter, 0, 200, &last);
     for (const auto& j : jobs) {
       const auto& p = j.progress();
       const double frac = p.total_steps() > 0
                               ? static_cast<double>(p.step()) / static_cast<double>(p.total_steps())
                               : 0.0;
       const char* state = erg::v1::JobState_Name(j.state()).c_str();
-      o << "<tr class=\"job\" data-job=\"" << html_escape(j.id()) << "\"><td><code>"
-        << html_escape(j.id()) << "</code></td><td>" << html_escape(j.spec().name())
-        << "</td><td class=\"" << state << "\">" << state << "</td><td><div class=\"bar\"><div "
+      o << "<tr class=\"job\" data-job=\"" << html_escape(j.id()) << "\"><td><a href=\"/jobs/"
+        << html_escape(j.id()) << "\"><code>" << html_escape(j.id()) << "</code></a></td><td>"
+        << html_escape(j.spec().name()) << "</td><td class=\"" << state << "\">" << state
+        << "</td><td><div class=\"bar\"><div "
         << "style=\"width:" << static_cast<int>(frac * 100) << "%\"></div></div>" << p.step()
         << " / " << p.total_steps() << "</td><td>";
       char rate[32];
@@ -282,6 +460,45 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
     o << "</body></html>\n";
     res.set_content(o.str(), "text/html; charset=utf-8");
   });
+}
+
+// Relief (highest minus lowest ground, bedrock + sand) of each snapshot of
+// a job, read from its snapshot files once and kept: [{step, time_days,
+// relief_m}]. A snapshot that cannot be read (deleted, being written) is
+// left out.
+std::string HttpApi::relief_json(const erg::v1::Job& job) {
+  std::string out = "[";
+  for (const std::int64_t step : job.snapshot_steps()) {
+    std::pair<double, double> v;
+    {
+      std::lock_guard<std::mutex> lock(relief_mu_);
+      auto& known = relief_[job.id()];
+      if (auto it = known.find(step); it != known.end()) {
+        v = it->second;
+      } else {
+        try {
+          const io::Snapshot snap = io::read_snapshot(mgr_.snapshot_path(job.id(), step), true);
+          const auto& b = snap[fields::kBedrock];
+          const auto& sand = snap[fields::kSand];
+          float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+          for (std::size_t i = 0; i < b.size() && i < sand.size(); ++i) {
+            lo = std::min(lo, b[i] + sand[i]);
+            hi = std::max(hi, b[i] + sand[i]);
+          }
+          if (b.empty()) continue;
+          v = {snap.meta.time_days, static_cast<double>(hi - lo)};
+          known[step] = v;
+        } catch (const std::exception&) {
+          continue;
+        }
+      }
+    }
+    char item[128];
+    std::snprintf(item, sizeof item, "%s{\"step\":%lld,\"time_days\":%.17g,\"relief_m\":%.9g}",
+                  out.size() > 1 ? "," : "", static_cast<long long>(step), v.first, v.second);
+    out += item;
+  }
+  return out + "]\n";
 }
 
 HttpApi::~HttpApi() {

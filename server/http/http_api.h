@@ -4,7 +4,15 @@
 //   GET /api/jobs              the tenant's jobs as JSON (protobuf JSON of
 //                              erg.v1.Job, without the spec)
 //   GET /api/jobs/ID           one job with its spec
-//   GET /api/jobs/ID/preview.png   the latest preview
+//   GET /api/jobs/ID/preview.png[?step=S]   the latest preview (or step S's)
+//   GET /api/jobs/ID/events    the job's events (JSON array of erg.v1.JobEvent)
+//   GET /api/jobs/ID/relief    relief at each snapshot [{step, time_days, relief_m}]
+//   POST /api/jobs/ID/cancel   CancelJob; POST /api/jobs/ID/steer (an Event or
+//                              an array, protobuf JSON): SteerJob
+//   GET /jobs/ID               the job page (server/http/assets/job.js):
+//                              preview, snapshot slider, plots, events, controls
+//   GET /?state=S              the list filtered by state
+//   GET /static/job.js, /static/dashboard.css   the page's own assets
 //   GET /metrics               Prometheus text format: every series for an
 //                              operator token, the tenant's own otherwise
 //   GET /login                 a sign-in form that POSTs the token
@@ -21,7 +29,9 @@
 // parses and routes complete requests.
 #pragma once
 
+#include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 
@@ -56,6 +66,7 @@ class HttpApi {
   void add_auth_routes();
   void sign_in(const httplib::Request& req, const std::string& token, httplib::Response& res);
   std::string session_cookie(const std::string& value, bool clear) const;
+  std::string relief_json(const erg::v1::Job& job);
 
   JobManager& mgr_;
   Tokens& tokens_;
@@ -65,6 +76,8 @@ class HttpApi {
   std::unique_ptr<HttpRouter> router_;
   std::unique_ptr<HttpFront> front_;
   bool tls_ = false;
+  std::mutex relief_mu_;
+  std::map<std::string, std::map<std::int64_t, std::pair<double, double>>> relief_;
 };
 
 }  // namespace erg::server

@@ -107,7 +107,10 @@ class Probes(ErgdTest):
 
     def test_every_http_route_refuses_a_missing_or_wrong_token(self):
         for path in ("/", "/api/jobs", "/api/jobs/%s" % self.job.id,
-                     "/api/jobs/%s/preview.png" % self.job.id, "/metrics"):
+                     "/api/jobs/%s/preview.png" % self.job.id, "/metrics",
+                     "/jobs/%s" % self.job.id, "/api/jobs/%s/events" % self.job.id,
+                     "/api/jobs/%s/relief" % self.job.id, "/static/job.js",
+                     "/static/dashboard.css", "/?state=running"):
             self.assertEqual(http_status(self.ergd.http + path), 401, path)
             self.assertEqual(http_status(self.ergd.http + path, "wrong-token-0123456789"), 401)
         self.assertEqual(http_status(self.ergd.http + "/login?token=wrong-token-0123456789"), 401)
@@ -124,7 +127,9 @@ class Probes(ErgdTest):
             self.assertEqual(theirs.details().replace(self.job.id, "ID"),
                              none.details().replace(missing, "ID"), method.name)
             self.assertNotIn("alice", theirs.details())
-        for path in ("/api/jobs/%s" % self.job.id, "/api/jobs/%s/preview.png" % self.job.id):
+        for path in ("/api/jobs/%s" % self.job.id, "/api/jobs/%s/preview.png" % self.job.id,
+                     "/api/jobs/%s/preview.png?step=0" % self.job.id, "/jobs/%s" % self.job.id,
+                     "/api/jobs/%s/events" % self.job.id, "/api/jobs/%s/relief" % self.job.id):
             self.assertEqual(http_status(self.ergd.http + path, BOB), 404, path)
 
     def test_ids_that_walk_the_file_system_find_nothing(self):
