@@ -14,6 +14,7 @@ import os
 import re
 import shutil
 import signal
+import sys
 import subprocess
 import tempfile
 
@@ -80,8 +81,8 @@ class Scratch:
                               capture_output=True, text=True, timeout=timeout)
 
     def run_python(self, block, timeout=600):
-        """Runs a ```python block with python3 in the scratch root."""
-        return subprocess.run(["python3", "-c", block.code], cwd=self.dir, env=self.env,
+        """Runs a ```python block in the scratch root, with the Python running the tests."""
+        return subprocess.run([sys.executable, "-c", block.code], cwd=self.dir, env=self.env,
                               capture_output=True, text=True, timeout=timeout)
 
     def cleanup(self):
