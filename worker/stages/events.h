@@ -5,6 +5,7 @@
 
 #include "core/hd.h"
 #include "core/units.h"
+#include "stages/obstacles.h"
 
 namespace erg::events {
 
@@ -48,6 +49,16 @@ ERG_HD units_t brush_units(const Brush& b, double px, double py) {
   const double w = brush_weight(b, px, py);
   if (w == 0.0) return 0;
   return static_cast<units_t>(llround(b.height_m * w * kUnitsPerM));
+}
+
+// The sand brush at one cell holding `sand` units under obstacle height `o`:
+// never below bare ground, and nothing on an obstacle (it holds no sand,
+// [BR04 4]).
+ERG_HD units_t sand_brush_change(const Brush& b, double px, double py, units_t sand, float o) {
+  units_t d = brush_units(b, px, py);
+  if (d < -sand) d = -sand;              // never below bare ground
+  if (obstacles::is_obstacle(o)) d = 0;  // obstacles hold no sand
+  return d;
 }
 
 ERG_HD bool in_region(const Region& r, double px, double py) {

@@ -65,6 +65,24 @@ ERG_HD bool covers(const Shape& s, double px, double py) {
   return ex * ex + ey * ey <= s.r * s.r;
 }
 
+// An obstacle edit at the cell centred at (px, py): `remove` clears the cell;
+// otherwise it takes the larger height and loses its sand on the ground and
+// in the air (an obstacle holds none, [BR04 4]). Returns the units taken
+// from the sand total (>= 0).
+ERG_HD units_t edit_cell(const Shape& s, bool remove, double px, double py, float& o, units_t& sand,
+                         units_t& airborne) {
+  if (!covers(s, px, py)) return 0;
+  if (remove) {
+    o = 0.0f;
+    return 0;
+  }
+  o = o < s.height_m ? s.height_m : o;  // max(o, height)
+  const units_t gone = sand + airborne;
+  sand = 0;
+  airborne = 0;
+  return gone;
+}
+
 // The obstacle's height in units, added to the exact block sums of the wind
 // warping's coarse grid (every tile converts its own cells the same way).
 ERG_HD units_t height_units(float o) {

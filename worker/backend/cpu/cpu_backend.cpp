@@ -104,9 +104,7 @@ total_t CpuBackend::apply_sand_brush(const events::Brush& b) {
     units_t* s = f_.sand.row(y);
     const float* o = f_.obstacles.row(y);
     for (int x = 0; x < g_.nx; ++x) {
-      units_t d = events::brush_units(b, centre_x(g_, x), centre_y(g_, y));
-      if (d < -s[x]) d = -s[x];                 // never below bare ground
-      if (obstacles::is_obstacle(o[x])) d = 0;  // obstacles hold no sand
+      const units_t d = events::sand_brush_change(b, centre_x(g_, x), centre_y(g_, y), s[x], o[x]);
       s[x] += d;
       change += d;
     }
@@ -151,15 +149,8 @@ total_t CpuBackend::set_obstacle(const obstacles::Shape& sh, bool remove) {
     units_t* s = f_.sand.row(y);
     units_t* a = f_.airborne.row(y);
     for (int x = 0; x < g_.nx; ++x) {
-      if (!obstacles::covers(sh, centre_x(g_, x), centre_y(g_, y))) continue;
-      if (remove) {
-        o[x] = 0.0f;
-      } else {
-        o[x] = std::max(o[x], sh.height_m);
-        change -= s[x] + a[x];  // an obstacle holds no sand, on the ground or in the air
-        s[x] = 0;
-        a[x] = 0;
-      }
+      change -=
+          obstacles::edit_cell(sh, remove, centre_x(g_, x), centre_y(g_, y), o[x], s[x], a[x]);
     }
   }
   std::vector<total_t> all{change};

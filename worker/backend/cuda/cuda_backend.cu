@@ -178,9 +178,7 @@ __global__ void sand_brush_kernel(TileGeom g, events::Brush b, units_t* sand, co
   const float* o = ob + g.at(0, y);
   total_t change = 0;
   for (int x = static_cast<int>(threadIdx.x); x < g.nx; x += kRowThreads) {
-    units_t d = events::brush_units(b, centre_x(g, x), centre_y(g, y));
-    if (d < -s[x]) d = -s[x];                 // never below bare ground
-    if (obstacles::is_obstacle(o[x])) d = 0;  // obstacles hold no sand
+    const units_t d = events::sand_brush_change(b, centre_x(g, x), centre_y(g, y), s[x], o[x]);
     s[x] += d;
     change += d;
   }
@@ -340,15 +338,8 @@ total_t CudaBackend::set_obstacle(const obstacles::Shape& sh, bool remove) {
   total_t change = 0;
   for (int y = 0; y < g_.ny; ++y)
     for (int x = 0; x < g_.nx; ++x) {
-      if (!obstacles::covers(sh, centre_x(g_, x), centre_y(g_, y))) continue;
-      if (remove) {
-        o(x, y) = 0.0f;
-      } else {
-        o(x, y) = std::max(o(x, y), sh.height_m);
-        change -= s(x, y) + a(x, y);  // an obstacle holds no sand, on the ground or in the air
-        s(x, y) = 0;
-        a(x, y) = 0;
-      }
+      change -= obstacles::edit_cell(sh, remove, centre_x(g_, x), centre_y(g_, y), o(x, y), s(x, y),
+                                     a(x, y));
     }
   copy_in(d_.obstacles, o, "obstacles");
   copy_in(d_.sand, s, "sand");
