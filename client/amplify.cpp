@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg amplify: one region of a snapshot, upsampled and amplified with
 // ripples and sand bumps [P19 6] (worker/amplify/), written as an HDF5
 // heightmap plus a hillshaded PNG preview. Small on purpose: `erg export`

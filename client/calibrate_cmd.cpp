@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg calibrate JOB.json: the physical-units measurements of a job as JSON
 // (sim/calibration.h, docs/physical-units.md): the time per step, the
 // flat-bed flux against the flux law over a range of u* / u_t, and the drift

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The commands of `erg`, one function each; main.cpp dispatches to them.
 // Each takes the arguments after the command name and returns the exit code.
 #pragma once

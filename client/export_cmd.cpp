@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg export: a snapshot of an output directory to GeoTIFF, 16-bit PNG,
 // OpenEXR or OBJ (worker/export/).
 #include <cstdio>

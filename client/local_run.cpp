@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Local runs: `erg run` starts erg-worker on this machine (under mpirun, or
 // $ERG_MPIRUN, with --ranks) and draws a progress bar from the events
 // (erg.v1.WorkerEvent, one JSON line each) rank 0 writes to its stdout;

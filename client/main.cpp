@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg: the command line for users.
 // On this machine (local_run.cpp):
 //   erg run JOB.json --out DIR [--steps N] [--snapshot-every K] [--checkpoint-every C]

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The progress bar of `erg run`, `erg watch` and `erg fetch`, drawn on
 // stderr: redrawn in place on a terminal, a line per 10% in logs and CI.
 #pragma once

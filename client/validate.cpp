@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg validate: runs the fixed scenes of client/validate/scenes/ with
 // erg-worker and measures laws of geomorphology on their heightfields
 // (barchan speed and shape, slip faces, transverse dunes, mass, migration

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
 # Installs every Debian package erg needs to build, test and run.
 # Idempotent and non-interactive: packages already present are skipped, so a
 # second run is a no-op that only checks. Needs root (or passwordless sudo).

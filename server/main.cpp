@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ergd: the erg job service (proto/erg/v1/service.proto).
 //   ergd token new TENANT [--operator] [--tokens FILE]
 //   ergd --listen ADDR --http ADDR --data DIR --tokens FILE

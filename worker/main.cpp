@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg-worker: runs one job, as one MPI rank of P (docs/design.md, "Processes"):
 //   mpirun -n P erg-worker JOB.json --out DIR [--tiles PXxPY] [...]
 // or alone (one rank, one tile). Started by `erg run` (which draws the

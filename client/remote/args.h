@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Arguments of the remote commands: positionals, flags with a value and
 // switches, in any order. Part of erg_client_lib, unit-tested.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Helpers shared by the remote commands (remote/*.cpp).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Where the remote commands find ergd, and with which token.
 //
 // Each setting is resolved on its own, the first found winning:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The connection of the remote commands to ergd: one channel (TLS when a CA
 // is configured), the JobService stub, per-call contexts carrying the bearer
 // token and a deadline, and the one-line error reports.

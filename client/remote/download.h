@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The bookkeeping of `erg fetch`: a snapshot is downloaded into DIR/NAME.part
 // next to DIR/NAME.part.sha256 (the sha256 the server announced), resumed
 // from the .part's size after an interruption, checked against the sha256

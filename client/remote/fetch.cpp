@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg fetch ID [--step S | --all] --out DIR
 // erg preview ID [--step S] --out FILE.png
 // Snapshots come over StreamSnapshot into DIR/NAME.part (remote/download.h):

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg jobs [--state S] [--all-pages]
 // erg status ID [--json]
 // erg cancel ID

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // gRPC status codes as the remote commands report them: names, exit codes,
 // which failures are worth a reconnect, and the reconnect schedule. Part of
 // erg_client_lib (plain ints, no gRPC headers), unit-tested.

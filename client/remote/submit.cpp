@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg submit JOB.json [--watch] [--key K] [--steps N] [--snapshot-every K]
 //                     [--checkpoint-every C] [--ranks P] [--threads T]
 //                     [--partition P] [--account A] [--nodes N] [--gpus-per-node G]

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg watch ID: follows WatchJob with a progress bar, printing the job's
 // state changes, snapshots, steering events and notes as lines. A lost
 // stream is opened again after the last event id seen (ergd replays what

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Measurements of geomorphological laws on erg heightfields.
 
 Every function works on plain numpy arrays laid out as erg's snapshots are

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
 """erg validate: run the fixed scenes of scenes/full (or scenes/quick) with
 erg-worker and measure laws of geomorphology on their heightfields; write
 OUT/report.md with one section per law (measured, expected with its source,

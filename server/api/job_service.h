@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg.v1.JobService over gRPC (proto/erg/v1/service.proto): authenticates
 // every call (bearer token -> tenant), maps JobManager errors to status
 // codes, streams events and snapshot files, records metrics.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // gRPC answers a request it cannot parse (truncated, a wrong wire type,
 // groups nested past protobuf's recursion limit) with INTERNAL and an empty
 // message, before any handler runs. This interceptor turns that into what it

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "auth/request_checks.h"
 
 #include "erg/v1/job.pb.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // What a tenant may ask of ergd, checked before anything else looks at a
 // request: no file of the server's own file system is read for a tenant,
 // and ids echoed back in errors are bounded and printable.

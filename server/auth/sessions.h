@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Dashboard sessions: a browser that signs in with a token gets a random
 // session id (256 bits) in its cookie, never the token. The session is bound
 // to the token: every use re-checks the token against the tokens file, so a

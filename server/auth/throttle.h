@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Sign-in throttling per client address: a token bucket of failed sign-ins.
 // An address may fail kBurst times at once, then once every kRefill; while
 // its bucket is empty its sign-ins are refused (429) without looking at the

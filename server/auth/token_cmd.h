@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `ergd token new TENANT [--operator] [--tokens FILE]`: makes a random
 // token, appends `TOKEN TENANT [operator]` to the tokens file (README,
 // "Tokens and tenants") and prints the token, so that a new ergd or a new

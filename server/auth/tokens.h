@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Bearer tokens: ergd's tokens file holds lines `TOKEN TENANT [ROLE]` (`#`
 // starts a comment). TOKEN is at least 16 characters; ROLE, when present, is
 // `operator` (may read every tenant's /metrics; README "Tokens").

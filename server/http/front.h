@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The socket side of ergd's HTTP server, in front of cpp-httplib's routing.
 //
 // cpp-httplib (0.11) gives every connection a pool thread from accept to

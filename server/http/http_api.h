@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ergd's HTTP side: for dashboards and monitoring.
 //   GET /                      the tenant's jobs: progress bars and the latest
 //                              preview, refreshing itself every 5 s

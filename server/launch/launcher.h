@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How ergd starts and stops workers: the local launcher (this machine,
 // mpirun or erg-worker directly, the default) and Slurm (sbatch).
 #pragma once

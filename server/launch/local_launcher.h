@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Runs workers on this machine: `erg-worker` for one rank, `mpirun -n P
 // erg-worker` for several (as root and oversubscribed where this machine
 // needs it, like `erg run --ranks`). Each worker gets its own process group

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Runs workers as Slurm batch jobs (`ergd --launcher slurm`): renders
 // deploy/slurm/ergd-job.sbatch into DATA/jobs/ID/job.sbatch and submits it
 // with sbatch; follows the job with squeue and the worker's progress file;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ergd's Prometheus metrics (prometheus-cpp), served as text at /metrics.
 //   erg_jobs{state}                       jobs in each state (gauge)
 //   erg_job_steps_per_second{job,tenant}  running jobs' rates (gauge)

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The heart of ergd: accepts jobs, keeps them in the store, runs a bounded
 // number at once through a Launcher, turns the workers' progress lines into
 // job state and events, cancels, steers, and after a restart resumes the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "store/job_store.h"
 
 #include <fcntl.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The persistent job store of ergd: one SQLite database (DATA/ergd.sqlite,
 // WAL journal, synchronous=FULL) holding every job and its event log. A job
 // is written before ergd answers the call that changed it, so killing ergd

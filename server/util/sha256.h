@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // SHA-256 of files (OpenSSL), cached by (path, size, mtime): snapshots are
 // written once and never change, so a file is hashed once however often it
 // is fetched.

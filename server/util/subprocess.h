@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Runs a command (no shell) and captures its output: sbatch, squeue, scancel.
 #pragma once
 

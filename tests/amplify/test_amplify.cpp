@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Amplification [P19 6] measured on small synthetic snapshots: the ripples
 // of the Nishimori-Ouchi model [ON00 2(1)] lie perpendicular to the wind
 // (2-D DFT of the amplified field minus the upsampled base), their wavelength

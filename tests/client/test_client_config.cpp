@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg_client_lib: how the remote commands find ergd (flags, environment,
 // config file), their argument parsing, status codes and retries, and the
 // bookkeeping of resumable, sha256-checked snapshot downloads.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Bitwise comparison of two snapshot files: every field and the exact totals
 // (e2e tests of tiling, restarts and steering).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A fresh scratch directory for one test, removed with everything in it
 // afterwards. The name carries the pid and the test's name, so ctest -j runs
 // never collide. Shared by every test folder.

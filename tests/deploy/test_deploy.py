@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """deploy/: the systemd unit passes `systemd-analyze verify` (and a broken
 copy does not: the check can fail), its example settings are flags ergd
 accepts, and the Slurm script templates are valid bash. `cmake --install

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // decompose() and parse_tiles(): grid choice, tile sizes, errors. No MPI.
 #include <gtest/gtest.h>
 

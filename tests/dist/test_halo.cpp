@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // HaloExchanger under mpirun (1 to 4 ranks): every tile's ghosts after fill()
 // and owned cells after sum() must equal what the single-process periodic
 // wrap gives on the whole domain, here computed from the global picture on

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """README's runnable code blocks, run as written.
 
 A fenced block directly preceded by a line `<!-- runnable -->` (or

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """README's ergd quick start, run exactly as README writes it (the blocks
 marked `<!-- runnable quickstart -->`) against the real ergd it starts on
 the default ports 127.0.0.1:7117 and 7118 (ctest holds a resource lock on

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """README's runnable blocks (tests/docs/readme_blocks.py) run as written,
 in README order in one scratch copy of the repository root, and every
 ```sh block of README is marked either runnable or, with its reason, not

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The programs as users run them: `erg run` (progress, outputs, the snapshot
 // file contract, resume, refusal to clobber, bad jobs, signals), the
 // examples, erg-bench and the backend flag.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The ETA of the worker's progress events (what `erg run` and `erg watch`
 show) on a real run: from 5% of the run on, each ETA is within 25% of the
 time the run really took to finish from there (worker/sim/moving_rate.h).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Steering a running worker (erg-worker --steer-dir DIR, used by ergd's
 // SteerJob): events dropped into DIR as NAME.json apply at the next step
 // boundary and are renamed NAME.applied, bad ones NAME.rejected, each with a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tiled worker: the same job on 1, 2, 3, 4 and 6 MPI ranks
 // gives identical exact state and identical snapshot datasets after every
 // snapshot, in both transport modes, with abrasion, vegetation, events, a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg_export and the map-fitting helpers of erg_io: EXR files read back with
 // the OpenEXR C++ API (not erg's code), the samples of heights_for_export,
 // and the seam test, border cross-fade and periodic resampling of input maps.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """erg export and map imports, checked with tools erg did not write.
 
 A small run (64 x 48 cells of 2 m) is exported to every format; the files are

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Run by pvbatch (ParaView's Python): opens an erg XDMF file with ParaView's
 own XDMF reader and prints, as one JSON line, what ParaView sees at every
 time step: data type, bounds, dimensions, arrays with their ranges, a few

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A small real run shared by the format tests: 96 x 64 cells of 2 m (not
 square, so a swapped axis shows), sand patches on fBm bedrock under one
 wind, snapshots at steps 0, 10, 20 and 30, read back with h5py."""

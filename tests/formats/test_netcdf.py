@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Snapshots as netCDF-4 with CF metadata, read by tools erg did not write:
 xarray over h5netcdf (open_mfdataset of a whole run) and ncdump."""
 import glob

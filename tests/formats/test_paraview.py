@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """ParaView opens erg's XDMF as its users expect: each snapshot in the X-Y
 plane with node data at the cell centres, height ready for Warp By Scalar
 along +Z, and DIR/run.xdmf one animated run. ParaView's own pvbatch reads the

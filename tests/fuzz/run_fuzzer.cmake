@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 # Runs the spec fuzzer for a bounded time on a fresh copy of the seed corpus
 # (ctest fuzz.SpecParser; see CMakeLists.txt here).
 #   cmake -DFUZZER=bin/spec_fuzzer -DSEED_DIRS="dir;dir" -DDICT=spec.dict

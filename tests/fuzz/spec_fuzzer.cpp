@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // libFuzzer target: random bytes as a job file, through everything a job file
 // meets before a run starts (erg check, erg run, erg-worker, later ergd):
 // parse_json, apply_defaults, validate, to_json.

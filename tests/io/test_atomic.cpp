@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Atomic writes, for every writer: a failed write throws IoError naming the
 // path, leaves no temporary behind, and never damages the file already at
 // the destination; a successful one leaves exactly the destination.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Checkpoints: bitwise round trip of the exact integer state (including the
 // extremes of int64), ledger order, and clear errors for missing, corrupt,
 // foreign or malformed files.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Parallel HDF5 snapshots and checkpoints, run under mpirun with 1 to 4 ranks:
 // files written tile by tile are the files the serial writers make (same
 // datasets, types, attributes, filters; values bitwise, read back by the

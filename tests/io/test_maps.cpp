@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Input maps: HDF5 datasets of any numeric type, 8/16-bit greyscale and RGB
 // PNGs (first image row = north), the 16-bit PNG writer, and clear errors.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hillshaded previews: size and reduction, north-up orientation, lighting
 // from the north-west, periodic slopes at the edges, and the ground colours.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Snapshots and their XDMF sidecar: exact round trip of every dataset and
 // attribute, the file contract as an independent reader (h5py) sees it, read
 // errors, and a well-formed XDMF that points at the right datasets.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Helpers shared by the erg_io tests: a scratch directory per test, file
 // bytes, a file-size limit that makes writes fail midway, and a PNG decoder
 // independent of the code under test (libpng's simplified API).

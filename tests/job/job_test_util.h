@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Helpers shared by the job tests: a scratch directory per test, a minimal
 // valid job, spec parsing with defaults, and writers of map files that do not
 // go through erg's own io code (raw HDF5 C API, a hand-made 16-bit PNG).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Defaults: apply_defaults fills every parameter to the default documented in
 // proto/erg/v1/job.proto, invents no layer source or wind regime, keeps what
 // the job sets, is idempotent; to_json round-trips; the parameter table.

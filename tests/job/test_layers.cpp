@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Initial-layer generators (init::generate_layer): every generator gives a
 // global cell the same value whatever tile computes it; fBm wraps smoothly;
 // sand patches reach their coverage; uniform values lie in [min, max); piles

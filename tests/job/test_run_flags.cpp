@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Run flags: parse_run_flags accepts the documented flags and rejects bad
 // values with one message naming the flag.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Validation: every bad spec is rejected with a message that names the field
 // (as a path), the bad value and what is allowed; parse errors name the field;
 // a valid spec has no problem; load_job_file names the file.

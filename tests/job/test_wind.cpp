@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Wind regimes (wind::regime_at, wind::at_step): direction convention, wind
 // rose frequencies, holds and seeds, series interpolation along the shorter
 // arc, clamping and periods, the bidirectional duty cycle, and regime switches

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Helpers of the security tests: raw HTTP from a chosen loopback source
 address (the whole of 127.0.0.0/8 is loopback on Linux, so one machine can
 play many clients), and the tokens file rewritten as an operator would."""

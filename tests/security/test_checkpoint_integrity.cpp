@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Checkpoints prove their integrity: every dataset, the stored spec and the
 // other root attributes are covered by the "checksums" attribute, and a
 // reader refuses any file whose content differs from it, naming what differs.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """`erg run --resume` never continues from a corrupt or foreign checkpoint.
 
 A run leaves two checkpoints (steps 20 and 30). The newer one is corrupted

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A full disk is a job failure, never an ergd failure.
 
 ergd's data directory is a real 24 MiB tmpfs mounted by the test (CI runs

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Errors a client can provoke are its own and bounded: size limits are
 RESOURCE_EXHAUSTED whichever limit says no; a request that is not a valid
 protobuf is INVALID_ARGUMENT with a message (not INTERNAL, not empty); an id

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The dashboard's sign-in and /metrics: /metrics shows a tenant only its
 own series (an operator token sees all); sign-in is throttled per client
 address and refuses cross-site requests; the session cookie is HttpOnly,

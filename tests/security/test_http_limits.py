@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """HTTP that idle clients cannot starve: slow unauthenticated connections
 (one header line every second, from 50 addresses, and 50 more from one
 address) cost ergd no worker thread, so an authenticated /metrics answers

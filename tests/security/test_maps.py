@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """No server file is read for a tenant: every erg.v1.MapFile field anywhere
 in a submitted JobSpec, or in a steering event, is refused with
 PERMISSION_DENIED, with a message that does not depend on whether the path

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The probes ergd already withstood, kept standing: every RPC and every
 HTTP route refuses a missing or wrong token; another tenant's job is
 NOT_FOUND, exactly like one that does not exist; ids that try to walk the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The map-file check on messages the schema does not have yet: a message
 // type built at run time (imported erg.v1.MapFile in a repeated field, a
 // oneof, a map and a nested repeated self-reference) shows that the check

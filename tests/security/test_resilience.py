@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """ergd against failing workers and unfit jobs, for real on loopback.
 
 - A worker SIGKILLed mid-job is retried from its newest intact checkpoint

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Revocation revokes, everywhere, within seconds: an open WatchJob stream
 ends with UNAUTHENTICATED within 2 s of its token leaving the tokens file; a
 file with bad lines applies its valid lines (so removals take effect) and

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ergd's job store on a full disk, for real: a 12 MiB tmpfs mounted by the
 // test (root; skipped otherwise), filled up with a file. Writes that fail
 // throw StoreError (full) and change nothing; the first one spends the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tokens file as ergd reads it, without the network: roles, bad lines
 // skipped and reported with their numbers (the others apply), revocation on
 // change, fail closed when the file is gone, and dashboard sessions bound to

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Starts a real ergd on loopback for the service tests.
 
 Everything is real: the ergd binary, its SQLite store, the erg-worker

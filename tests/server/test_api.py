@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """ergd's API contract: authentication, tenants, validation, limits,
 idempotency, paging, health and reflection, a Python client built from
 proto/ submitting, watching and streaming."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The erg CLI's remote commands against a real ergd.
 
 The real erg binary (ERG_BIN_DIR) runs as a subprocess and talks gRPC to a

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The dashboard in headless Chromium (Debian's chromium and
 chromium-driver, driven by Selenium) against a real ergd with real
 workers: the list's state filters, a click to a job's page with its full

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """ergd's HTTP side: every route needs a token, /api/jobs is the tenant's,
 /metrics is Prometheus text, and the dashboard, loaded in headless Chromium
 (Debian's), shows the job's row and its preview image."""

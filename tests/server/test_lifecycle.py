@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """Jobs through their lives: the queue (bounded, fair across tenants),
 cancel (queued and running), steering a running job and re-running its
 recorded spec to the same bits, ergd SIGKILLed mid-job and restarted, and

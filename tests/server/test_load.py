@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A bounded load on loopback: 20 queued jobs from two tenants, 50
 concurrent watchers, repeated snapshot fetches and a GetJob poller, all at
 once. Checks that nothing is lost or stuck (every job succeeds, every

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // ergd's building blocks without the network: the SQLite job store
 // (persistence across reopen, idempotency keys, event log order, paging).
 // The tokens file: tests/security/test_tokens.cpp.

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """ergd with --tls-cert/--tls-key: gRPC and HTTP over TLS with a
 self-signed certificate made by the openssl CLI; plaintext is refused."""
 import os

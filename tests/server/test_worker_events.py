@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The worker protocol end to end: erg-worker writes erg.v1.WorkerEvent lines
 (proto/erg/v1/worker.proto) and ergd parses them with protobuf, so text the
 worker reports reaches the job record exactly as written.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Helpers for simulation tests: jobs from JSON text, runs, field access.
 #pragma once
 

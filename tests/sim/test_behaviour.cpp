@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Behaviour of the model, asserted with measured numbers (issue: "Behaviour
 // tests"): relaxation of a sand column, pile migration against height, the
 // torus, vegetation, wind shadow, and opposite winds.

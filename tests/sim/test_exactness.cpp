@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Exactness (docs/design.md, "Exactness"): over 1000 steps on a
 // non-square torus with the wind at 30 degrees to the grid, sand is conserved
 // to the unit (sand + bedrock with abrasion), never negative, and the fields

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Physical units (docs/physical-units.md): the wind as u* or U(z) with z0,
 // the fluid threshold, the flat-bed flux against the flux law through the
 // measured time per step, and a wind rose's drift against Fryberger & Dean

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Local wind primitives ([P19] 4.4, stages/wind_primitives.h): the discrete
 // curl of psi has no discrete divergence (the matching corner operator), also
 // across the torus seam; a vortex turns the right way with the right peak;

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """A one-node Slurm cluster (Debian's slurmctld, slurmd and munge) inside a
 test's temporary directory (docs/design.md, "Platform notes"): its own munge key and
 socket, state, spool and log folders, free ports; jobs run as root. stop()

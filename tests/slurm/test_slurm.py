@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """ergd on a real one-node Slurm (munge, slurmctld, slurmd started in the
 test's temp directory): a 2-rank job submitted and watched with the erg
 CLI, a cancelled job, and a job whose walltime warning stops it (SIGTERM,

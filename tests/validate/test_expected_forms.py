@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The deterministic (EXPECTED) twins of the dune examples form the dunes of
 their stochastic originals: a sand pile on bare bedrock becomes crescent
 barchans with slip faces and horns pointing downwind, and a flat sand bed

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """The measurements of erg validate (client/validate/measure.py) on
 synthetic fields whose answers are known: a sinusoidal transverse field of
 known wavelength and orientation, a Gaussian pile moved by a known offset

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: Apache-2.0
 """erg validate --quick as a user runs it: the report exists with every
 section, each section has numbers and a verdict, the plots it links exist,
 the mass law passes exactly (sand is conserved to the unit in every scene),

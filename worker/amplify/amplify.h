@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Export-time amplification [P19 6]: the final sand elevation of a region of
 // a snapshot, upsampled K times, S~ = S + R + B, with wind ripples R
 // (ripples.h) and sand bumps B around vegetation and obstacles (bumps.h).

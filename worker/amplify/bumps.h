@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Sand bumps B around plants and obstacles [P19 6, Fig. 13]: sand caught by a
 // small obstacle piles up on its windward side and trails in its lee, as a
 // nabkha does. Each bump blends two point primitives: a round mound just

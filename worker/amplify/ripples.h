@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Wind ripples R [P19 6] by the Nishimori-Ouchi model as Onoue & Nishita run
 // it [ON00 2(1)], on the upsampled (fine) grid. Each iteration:
 //   saltation: every cell lifts q (times its mobility) and drops it a hop

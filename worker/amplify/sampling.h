@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Internal to amplify/: reading coarse snapshot fields at fine positions.
 #pragma once
 

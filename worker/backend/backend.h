@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A backend runs the stages of the step pipeline on one tile's data, on the
 // CPU (backend/cpu) or a CUDA GPU (backend/cuda). The order of the stages,
 // the wind regime and the events live in sim/simulation.cpp; the per-cell

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // erg-bench: the benchmark scenes of [N24] Table 1 (docs/design.md, "Benchmarks").
 //
 //   erg-bench --scene A|B --size 512|1024|2048|4096 [--steps N] [--warmup W]

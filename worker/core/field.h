@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Host storage of one padded per-cell field (see grid.h).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The field registry: every per-cell field of a tile, declared once (the
 // Parthenon way: a field and its metadata, from which storage, outputs and
 // ghost exchanges follow).

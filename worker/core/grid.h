@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Geometry of one tile of the toric domain, with a ghost (halo) ring.
 //
 // A tile owns nx x ny cells whose global coordinates start at (x0, y0) in a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A small integer hash of three words, shared by the host noise generators
 // (init/noise.h) and the per-corner curl noise of the wind primitives
 // (stages/wind_primitives.h): lattice values that depend only on global

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Host/device qualifiers: per-cell math is written once and compiled for the
 // CPU backend (g++) and the CUDA backend (nvcc) from the same source.
 #pragma once

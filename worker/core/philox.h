@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Counter-based random numbers: Philox4x32-10 (Salmon et al., SC 2011).
 // A draw depends only on (seed, step, global cell index, event), never on the
 // order cells are visited, so stochastic transport gives the same result on

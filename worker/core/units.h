@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Exact height units. Sand, bedrock and airborne sand are held as int64
 // counts of 2^-32 m (about 0.23 nm). Every transfer subtracts from the donor
 // exactly what it adds to the receiver, and integer sums do not depend on

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A 2-vector of floats usable on host and device (wind, gradients).
 #pragma once
 

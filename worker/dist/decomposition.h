@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Partition of the toric domain into a Px x Py Cartesian grid of tiles.
 //
 // Tiles along an axis are ceil(n / p) cells (rounded up to the alignment),

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // How a tile talks to the rest of the torus: its ghosts are filled from
 // their owners, scatters into ghosts are summed back, and exact totals are
 // summed over all tiles. One tile that is the whole domain wraps onto

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // One field of a halo exchange and the ghost width it needs. Several travel
 // together: one message per neighbour and phase carries all of them (the
 // halo over an array set of Cabana::Grid).

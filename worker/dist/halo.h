@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Halo exchange between the tiles of a periodic Cartesian communicator.
 //
 // fill(): every ghost cell (width w) gets the value of the owned cell it

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The Exchange of a tile on an MPI rank: ghosts through HaloExchanger,
 // exact sums and the coarse wind grid through collectives.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // `erg export`: the snapshot, the samples, the engine tiles, one writer per
 // file (see export.h).
 #include "export/export.h"

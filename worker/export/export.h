@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Exports of a snapshot to the formats of GIS and game-engine tools:
 // GeoTIFF (geotiff.cpp), 16-bit PNG + JSON sidecar (png16.cpp), OpenEXR
 // (exr.cpp) and OBJ meshes (obj.cpp); the command `erg export` (export.cpp)

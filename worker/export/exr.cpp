@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // OpenEXR export: one 32-bit float channel "Y" (luminance: DCC tools and
 // Houdini read a one-channel height field from it), ZIP compression, the
 // first row at the north edge, erg's provenance as string attributes.

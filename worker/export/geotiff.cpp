@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // GeoTIFF export through GDAL: float32, DEFLATE with the floating-point
 // predictor (PREDICTOR=3), 256 x 256 tiles, the pixel size as geotransform and
 // a local engineering CRS in metres (the domain is a torus, not a place on

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The exported samples of a layer (see heights_for_export in export.h) and
 // their amplified form (amplified_heights).
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Wavefront OBJ export of a region: one vertex per sample in metres (x east,
 // y north, z up), two triangles per quad (counter-clockwise seen from above),
 // optional vertex normals from central differences.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // 16-bit PNG heightmap export with a JSON sidecar: the PNG is what game
 // engines import; the sidecar says how to turn its samples back into metres
 // and gives the import settings of Unreal's Landscape and Unity's Terrain.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Initial layers: evaluate a Layer (sum of its sources) at the owned cells of
 // a tile. Every generator is a function of the global cell and the seed only,
 // so any tiling of the domain generates the same field.

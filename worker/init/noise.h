@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Tileable gradient noise: Perlin-style noise on a lattice of period (px, py),
 // so the field wraps seamlessly on the torus. Evaluated per cell from a hash
 // of the lattice point: any tile of the domain computes the same values.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The one way erg writes a file that must survive a crash: snapshots, XDMF,
 // checkpoints, previews, exports, DIR/job.json, ergd's steering files and
 // batch scripts, erg's downloads. Header-only, with no dependency beyond

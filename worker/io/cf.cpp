@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // CF-1.10 / netCDF-4 metadata of snapshots (cf.h).
 #include "io/cf.h"
 

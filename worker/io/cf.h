@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Internal to erg_io: what makes a snapshot a netCDF-4 file that follows the
 // CF conventions (CF-1.10), so that netCDF tools (ncdump, xarray over
 // h5netcdf, Panoply, ...) see real dimensions and coordinates rather than

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Checkpoints: the exact integer state of a run in one HDF5 file, enough to
 // continue bitwise identically. Layout (all [ny][nx], deflate + shuffle):
 // one dataset per state field of the registry (core/fields.h), in its order

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Input maps from OpenEXR images: one float channel, first row = north edge.
 #include <ImathBox.h>
 #include <ImfChannelList.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Internal to erg_io: the parts of the snapshot and checkpoint file contracts
 // that the serial writers (snapshot.cpp, checkpoint.cpp) and the parallel ones
 // (parallel.cpp) share, so that both kinds of writer produce the same files:

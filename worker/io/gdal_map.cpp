@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Input maps through GDAL (GeoTIFF, and any raster GDAL reads): band 1 as
 // doubles, row 0 = south, with the pixel size and linear unit the file gives.
 #include <cpl_conv.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Internal to erg_io: small RAII and error helpers over the HDF5 C API, shared
 // by snapshots, checkpoints and HDF5 input maps.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Heightmaps of amplified regions (erg amplify).
 #include <hdf5.h>
 

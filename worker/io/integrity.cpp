@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Checkpoint checksums (integrity.h).
 #include "io/integrity.h"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Checksums that let a checkpoint prove its integrity (internal to erg_io).
 //
 // A checkpoint carries one root attribute "checksums", written after

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Files a run writes and reads: HDF5 snapshots (+ XDMF sidecar), exact
 // checkpoints, hillshaded PNG previews, and input maps (HDF5, 16-bit PNG).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The error every file writer and reader of erg throws (io.h, atomic_file.h).
 // On its own so that programs which only write files atomically (ergd, erg's
 // downloads) need none of io.h's dependencies (MPI, HDF5).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Fitting an input map to the periodic grid: the seam test, the border
 // cross-fade and bilinear resampling on the torus (see io.h).
 #include <algorithm>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Input maps (initial bedrock, sand, vegetation; masks) from HDF5 datasets or
 // greyscale PNGs, and the 16-bit PNG writer used for exports and tests.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Snapshots and checkpoints written and read by every rank of a communicator
 // through parallel HDF5 (the mpio driver): each rank writes or reads its tile
 // as a hyperslab of the global datasets, collectively. The files are the same

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Internal to erg_io: libpng error plumbing and the atomic PNG writer shared
 // by previews (8-bit RGB) and heightmap exports (16-bit grey).
 //

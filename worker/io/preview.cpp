@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Hillshaded PNG previews: what a person looks at first, so they should read
 // like a map. North is up, light comes from the north-west (the cartographic
 // convention, so dunes look raised rather than sunken), and colour says what

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The names of the files a run writes (README, "Outputs"), for every program
 // that makes or looks for them: erg-worker, ergd, erg fetch, erg export and
 // erg amplify.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Snapshots: one HDF5 file per output step (float32 layers in metres plus the
 // run's metadata as root attributes), a netCDF-4 file with CF metadata
 // (cf.cpp); the XDMF sidecars for ParaView are in xdmf.cpp. The file contract

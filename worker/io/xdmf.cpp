@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // XDMF descriptions of snapshots for ParaView and VisIt: one sidecar per
 // snapshot and DIR/run.xdmf, the temporal collection of a whole run.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Input maps as the job names them: see map_file.h.
 #include "job/map_file.h"
 

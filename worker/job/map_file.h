@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Input maps as the job names them (erg.v1.MapFile): the format from the
 // field or the extension, the reader, the tileability test, the border
 // cross-fade and the resampling to the domain's grid. validate() and the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The command-line flags of a run, parsed in one place for `erg run`,
 // `erg-worker` (and, later, `erg submit`): --steps, --snapshot-every,
 // --checkpoint-every, --threads, --backend, --out, --resume, --ranks, --tiles,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Job specs: parse the protobuf-JSON job file, fill defaults, validate.
 //
 // Defaults, ranges and units come from the (erg.v1.spec) options in

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The worker protocol (proto/erg/v1/worker.proto): one erg.v1.WorkerEvent per
 // line of protobuf JSON. erg-worker writes the lines (rank 0, --progress-fd);
 // ergd's launchers and `erg run` read them. Both sides use these two

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The time a step represents, measured (docs/physical-units.md).
 //
 // In the physical modes (WindRegime.speed_is) the model's sand flux over a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Everything a step needs from the job spec, resolved once into plain values
 // (radians to tangents, metres to units and cells) so kernels receive small
 // POD structs by value.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The steps/s and ETA of progress events. A run's rate changes: the first
 // steps pay for setup and for the avalanching of the initial layers, and
 // snapshots and checkpoints stall a step now and then. The mean since the

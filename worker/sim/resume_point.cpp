@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "sim/resume_point.h"
 
 #include <google/protobuf/util/field_comparator.h>

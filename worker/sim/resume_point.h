@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Which checkpoint a resume continues from: the newest one in
 // DIR/checkpoints that proves its integrity (io::read_checkpoint verifies its
 // checksums) and whose spec agrees with the run's record, DIR/job.json.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A whole run as erg-worker performs it, on one MPI rank or many: load or
 // resume, step, and write snapshots, previews and checkpoints at the job's
 // cadence, reporting progress. Output directory layout (README, "Outputs"):

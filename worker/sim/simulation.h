@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A run of the aeolian model on one tile: the state, the backend and the
 // per-step pipeline (the task list in Simulation::step, read top to bottom).
 #pragma once

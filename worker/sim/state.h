@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The exact state of one tile: what a checkpoint holds. Everything else
 // (heights, wind, shadow, buffers) is derived from it each step. Its fields
 // are the state fields of the registry (core/fields.h).

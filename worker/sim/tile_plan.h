@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The tile grid a job's domain gets on a number of ranks, without MPI or a
 // simulation: erg-worker tiles with it (sim/tiling.h), ergd checks a job's
 // rank count with it at submission. Library erg_tiling (the model constants,

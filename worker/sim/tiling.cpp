@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 #include "sim/tiling.h"
 
 #include "dist/mpi_exchange.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // A job's domain cut into tiles over the ranks of a communicator: the tile
 // grid, this rank's tile and how it reaches the others. Used by erg-worker
 // and erg-bench.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Avalanching ([N24] 3.8, eqs. 9-11), sand and bedrock.
 //
 // In each iteration every cell i computes, for its 8 neighbours j, the height

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Echo dunes ([N24] 3.5 and 4.2.2, after Taylor and Keyser 2023 [TK23]): in
 // front of a steep cliff facing the wind, the flow separates into a reverse
 // eddy that keeps a sand-free gap at the cliff's foot and drops its sand

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Timeline edits ([P19] 7.1): brushes that add or remove sand, raise or
 // lower bedrock, and vegetation set in a region. Positions are in metres on
 // the torus; distances wrap.

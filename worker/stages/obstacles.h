@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Obstacles ([BR04] 4, Benes and Roa 2004; [N24] 3.5 "object map"): rocks,
 // buildings and roads, cells that hold no sand and are never eroded.
 //

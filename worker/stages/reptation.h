@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reptation ([N24] 3.7, eqs. 6-8): impacts push sand down every slope.
 //
 // Between neighbours i and j the flux is symmetric: with d the slope between

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Saltation with abrasion ([P19] 5.1-5.2, [N24] 3.6), per cell.
 //
 // Each step: (1) lift sand into the airborne slab buffer; (2) advect every

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Vegetation: how plant cover v in [0, 1] couples into every transport stage
 // ([P19] 5.1 and Fig. 8, [N24] 3.6-3.8). Vegetation is static between
 // timeline events; these are the only places it acts, so changing the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Venturi effect: wind accelerates with altitude, v = a (1 + k_V h)
 // ([P19] 4.2, [N24] eq. 1). The factor is clamped at 0 so that terrain far
 // below the datum (h < -1/k_V) calms the wind instead of reversing it.

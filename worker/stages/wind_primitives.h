@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Local wind primitives ([P19] 4.4): a user-placed, time-varying
 // perturbation u(p, t) added to the warped surface wind, before the shadow.
 // As in Bridson et al. 2007, "Curl-noise for procedural fluid flow" [BHN07],

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Wind shadow ([P19] 4.3, [N24] 3.4 eq. 4, linear mode).
 //
 // From a cell, march upwind N_s = ceil(R_s / l) steps of one cell length,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Multi-scale wind warping ([P19] 4.2, [N24] 3.3 eqs. 2-3).
 //
 // The venturi wind v is bent along the relief at two scales: with h_i the

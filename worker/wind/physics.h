@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The sand and the wind in physical terms (docs/physical-units.md): the fluid
 // threshold of Bagnold 1941, the saturated flux laws of Lettau & Lettau 1978
 // and Kawamura 1951, the law of the wall, and how a physical wind drives the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The local wind primitives active at a step ([P19] 4.4), resolved from the
 // job: its own wind_primitives (steps from 0), plus those events add (steps
 // from the event) minus those events remove, on the timeline order of

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // High-altitude wind a(t) ([P19] 4.1): the uniform wind above the terrain at
 // each step, from the job's regime and the wind events of its timeline.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The job page of ergd's dashboard (GET /jobs/ID): the latest preview at
 // full size, a slider over the job's snapshots, plots over simulated time
 // drawn from the job's progress events (inline SVG, no library), the event

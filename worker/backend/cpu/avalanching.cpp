@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Avalanching on the CPU (stages/avalanching.h), sand and bedrock.
 //
 // Each iteration is two gather passes: pass 1 computes every donor's

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The CPU backend: OpenMP threads over rows of padded fields. Every stage is
 // a gather or an integer scatter, so the result does not depend on the thread
 // count (docs/design.md, "Exactness"); inner loops are written to vectorise.

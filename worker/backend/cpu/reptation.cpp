@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reptation on the CPU (stages/reptation.h): one gather pass, written out
 // over the 8 neighbours so that it vectorises.
 #include "stages/reptation.h"

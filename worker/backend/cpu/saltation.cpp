@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Saltation on the CPU (stages/saltation.h): lift, scatter of airborne sand
 // one hop downwind, reverse halo accumulation, deposition/bounce/abrasion.
 #include "stages/saltation.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Wind shadow on the CPU (stages/wind_shadow.h).
 //
 // Most cells have no terrain within reach that rises at 10 degrees: a bound on

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Surface wind on the CPU: venturi and multi-scale warping
 // (stages/venturi.h, stages/wind_warping.h), then the local wind primitives
 // (stages/wind_primitives.h).

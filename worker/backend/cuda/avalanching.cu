@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Avalanching on the GPU (stages/avalanching.h), sand and bedrock, as
 // backend/cpu/avalanching.cpp: every iteration is two gather passes over
 // double-buffered heights. Pass 1 (avalanching::donor) gives each donor its

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // CUDA backend: construction, device selection, upload/download, periodic
 // halos, timeline events and exact totals. The stages are in wind.cu,
 // shadow.cu, saltation.cu, reptation.cu and avalanching.cu.

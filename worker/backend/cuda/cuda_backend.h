@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // The CUDA backend: the same stages, in the same order, over the same padded
 // fields as the CPU backend (backend/cpu), one thread per cell. Every formula
 // is a call into stages/ (shared with the CPU); the code here only allocates

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Reptation on the GPU (stages/reptation.h), as backend/cpu/reptation.cpp:
 // one gather pass into a second buffer (donor and receiver evaluate the same
 // exchange() call, so no atomics are needed), then a swap.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Saltation on the GPU (stages/saltation.h), as backend/cpu/saltation.cpp:
 // (1) lift into the airborne buffer, (2) scatter every airborne amount one hop
 // downwind into `landed` (64-bit integer atomics: exact, any order), fold the

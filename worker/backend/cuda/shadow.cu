@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Wind shadow on the GPU (stages/wind_shadow.h), as backend/cpu/shadow.cpp:
 // one thread per owned cell marching upwind over the halo-filled heights.
 #include "backend/cuda/cuda_backend.h"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: Apache-2.0
 // Surface wind on the GPU: venturi and multi-scale warping
 // (stages/venturi.h, stages/wind_warping.h), as backend/cpu/wind.cpp:
 // heights in metres, exact coarse block sums, spectral Gaussian gradients on
