@@ -12,7 +12,8 @@ import numpy as np
 BIN = os.environ.get("ERG_BIN_DIR", os.path.join(os.path.dirname(__file__), "../../build/bin"))
 ERG = os.path.join(BIN, "erg")
 NX, NY, CELL = 96, 64, 2.0
-LAYERS = ("bedrock", "sand", "vegetation", "wind_x", "wind_y", "airborne", "shadow", "obstacles")
+LAYERS = ("bedrock", "sand", "vegetation", "wind_x", "wind_y", "airborne", "shadow", "obstacles",
+          "deposited_m")
 
 
 def job(steps=30, every=10):

@@ -42,7 +42,8 @@ class NetCdf(unittest.TestCase):
         self.assertEqual(ds.time.attrs["standard_name"], "time")
         # Variables: units and long names everywhere, standard names where CF has one.
         want = {"bedrock": "m", "sand": "m", "vegetation": "1", "wind_x": "m s-1",
-                "wind_y": "m s-1", "airborne": "m", "shadow": "1", "obstacles": "m"}
+                "wind_y": "m s-1", "airborne": "m", "shadow": "1", "obstacles": "m",
+                "deposited_m": "m"}
         for name, units in want.items():
             self.assertEqual(ds[name].attrs["units"], units, name)
             self.assertTrue(ds[name].attrs["long_name"], name)

@@ -59,8 +59,9 @@ class ParaView(unittest.TestCase):
                                           0.0, 0.0])
         arrays = seen["arrays"]
         self.assertEqual(set(arrays), {"height", "bedrock", "sand", "vegetation", "wind",
-                                       "airborne", "shadow", "obstacles"})
-        for name in ("bedrock", "sand", "vegetation", "airborne", "shadow", "obstacles"):
+                                       "airborne", "shadow", "obstacles", "deposited_m"})
+        for name in ("bedrock", "sand", "vegetation", "airborne", "shadow", "obstacles",
+                     "deposited_m"):
             a = arrays[name]
             self.assertEqual((a["components"], a["tuples"]), (1, R.NX * R.NY), name)
             self.assertEqual(a["range"][0], [float(h[name].min()), float(h[name].max())], name)
