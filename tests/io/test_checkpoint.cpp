@@ -13,54 +13,17 @@
 #include <string>
 #include <vector>
 
+#include "checkpoint_sample.h"
 #include "io/io.h"
 #include "test_util.h"
 
 namespace erg::io {
 namespace {
 
+using testing::kP62;
 using testing::read_bytes;
+using testing::sample_checkpoint;
 using testing::TempDir;
-
-constexpr std::int64_t kP62 = std::int64_t{1} << 62;
-
-Checkpoint sample(int nx, int ny) {
-  Checkpoint c;
-  c.step = 987654321012;
-  c.nx = nx;
-  c.ny = ny;
-  c.job_spec_json = "{\"grid\": {\"nx\": " + std::to_string(nx) + "}}";
-  const std::size_t n = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
-  std::mt19937_64 rng(7);
-  const std::int64_t edge[] = {kP62,
-                               -kP62,
-                               kP62 - 1,
-                               -kP62 + 1,
-                               kP62 + 12345,
-                               -kP62 - 12345,
-                               std::numeric_limits<std::int64_t>::max(),
-                               std::numeric_limits<std::int64_t>::min(),
-                               0,
-                               -1,
-                               1};
-  for (std::size_t i = 0; i < n; ++i) {
-    // Near +-2^62, low bits random: the bits that float conversion would lose.
-    const std::int64_t noise = static_cast<std::int64_t>(rng() % 1000003);
-    c.units[erg::fields::kBedrock].push_back(i < std::size(edge) ? edge[i] : kP62 - noise);
-    c.units[erg::fields::kSand].push_back(i % 2 ? -kP62 + noise
-                                                : static_cast<std::int64_t>(rng() >> 2));
-    c.units[erg::fields::kAirborne].push_back(static_cast<std::int64_t>(rng()));
-    c.reals[erg::fields::kVegetation].push_back(static_cast<float>(i % 101) / 100.0f);
-    c.reals[erg::fields::kResistance].push_back(i == 0   ? -0.0f
-                                                : i == 1 ? 1e-40f
-                                                         : static_cast<float>(rng() % 997) * 1e-3f);
-  }
-  // Deliberately not in name order: the order must survive.
-  c.ledger = {{"sand_added", "170141183460469231731687303715884105727"},
-              {"bedrock_eroded", "-170141183460469231731687303715884105728"},
-              {"airborne_lost", "0"}};
-  return c;
-}
 
 template <class T>
 void expect_same_bits(const std::vector<T>& got, const std::vector<T>& want, const char* name) {
@@ -80,7 +43,7 @@ std::string read_error(const std::string& path) {
 TEST(Checkpoint, RoundTripsBitwise) {
   TempDir dir;
   // 300 x 270: several chunks, partial ones at both edges.
-  const Checkpoint c = sample(300, 270);
+  const Checkpoint c = sample_checkpoint(300, 270);
   const std::string path = dir.file("ckpt.h5");
   write_checkpoint(path, c);
   const Checkpoint r = read_checkpoint(path);
@@ -105,7 +68,7 @@ TEST(Checkpoint, RoundTripsBitwise) {
 TEST(Checkpoint, StoresInt64DatasetsAndLedgerAttributes) {
   TempDir dir;
   const std::string path = dir.file("ckpt.h5");
-  write_checkpoint(path, sample(5, 4));
+  write_checkpoint(path, sample_checkpoint(5, 4));
   hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   ASSERT_GE(f, 0);
   for (const char* name : {"bedrock_units", "sand_units", "airborne_units"}) {
@@ -139,7 +102,7 @@ TEST(Checkpoint, CorruptFilesAreReported) {
 
   // A truncated checkpoint: right signature, missing data.
   const std::string good = dir.file("good.h5");
-  write_checkpoint(good, sample(64, 64));
+  write_checkpoint(good, sample_checkpoint(64, 64));
   const std::string bytes = read_bytes(good);
   for (std::size_t keep : {bytes.size() / 2, std::size_t{600}}) {
     const std::string cut = dir.file("cut.h5");
@@ -167,7 +130,7 @@ TEST(Checkpoint, SnapshotIsNotACheckpoint) {
 TEST(Checkpoint, WrongShapeIsReported) {
   TempDir dir;
   const std::string path = dir.file("ckpt.h5");
-  write_checkpoint(path, sample(6, 5));
+  write_checkpoint(path, sample_checkpoint(6, 5));
   // Replace /sand_units by a [5][7] dataset.
   hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
   ASSERT_GE(f, 0);
@@ -188,13 +151,13 @@ TEST(Checkpoint, WrongShapeIsReported) {
 
 TEST(Checkpoint, InvalidInputIsRejectedBeforeWriting) {
   TempDir dir;
-  Checkpoint c = sample(4, 3);
+  Checkpoint c = sample_checkpoint(4, 3);
   c.units[erg::fields::kSand].pop_back();
   EXPECT_THROW(write_checkpoint(dir.file("a.h5"), c), IoError);
-  c = sample(4, 3);
+  c = sample_checkpoint(4, 3);
   c.ledger.push_back({"bad", "12x"});
   EXPECT_THROW(write_checkpoint(dir.file("a.h5"), c), IoError);
-  c = sample(4, 3);
+  c = sample_checkpoint(4, 3);
   c.ledger.push_back(c.ledger.front());
   EXPECT_THROW(write_checkpoint(dir.file("a.h5"), c), IoError);
   EXPECT_TRUE(dir.entries().empty());

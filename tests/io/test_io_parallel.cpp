@@ -28,6 +28,7 @@
 #include <utility>
 #include <vector>
 
+#include "checkpoint_sample.h"
 #include "io/io.h"
 #include "test_util.h"
 
@@ -218,41 +219,6 @@ SnapshotFields global_fields(const GlobalSnapshot& g, bool optional) {
   return f;
 }
 
-constexpr std::int64_t kP62 = std::int64_t{1} << 62;
-
-// A global checkpoint with the extremes of int64 and float bit patterns; the
-// same on every rank (fixed seed).
-Checkpoint global_checkpoint(int nx, int ny) {
-  Checkpoint c;
-  c.step = 987654321012;
-  c.nx = nx;
-  c.ny = ny;
-  c.job_spec_json = "{\"grid\": {\"nx\": " + std::to_string(nx) + "}}";
-  const std::size_t n = static_cast<std::size_t>(nx) * static_cast<std::size_t>(ny);
-  std::mt19937_64 rng(7);
-  const std::int64_t edge[] = {kP62,
-                               -kP62,
-                               std::numeric_limits<std::int64_t>::max(),
-                               std::numeric_limits<std::int64_t>::min(),
-                               0,
-                               -1};
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::int64_t noise = static_cast<std::int64_t>(rng() % 1000003);
-    c.units[erg::fields::kBedrock].push_back(i < std::size(edge) ? edge[i] : kP62 - noise);
-    c.units[erg::fields::kSand].push_back(i % 2 ? -kP62 + noise
-                                                : static_cast<std::int64_t>(rng() >> 2));
-    c.units[erg::fields::kAirborne].push_back(static_cast<std::int64_t>(rng()));
-    c.reals[erg::fields::kVegetation].push_back(static_cast<float>(i % 101) / 100.0f);
-    c.reals[erg::fields::kResistance].push_back(i == 0   ? -0.0f
-                                                : i == 1 ? 1e-40f
-                                                         : static_cast<float>(rng() % 997) * 1e-3f);
-  }
-  // Not in name order: the order must survive.
-  c.ledger = {{"sand_added", "170141183460469231731687303715884105727"},
-              {"bedrock_eroded", "-170141183460469231731687303715884105728"},
-              {"airborne_lost", "0"}};
-  return c;
-}
 
 Checkpoint checkpoint_tile(const Checkpoint& g, const TileSlab& s) {
   Checkpoint c;
@@ -555,7 +521,7 @@ class ParallelCheckpoint : public ::testing::TestWithParam<std::pair<int, int>> 
 TEST_P(ParallelCheckpoint, SerialReaderSeesTheGlobalStateAndContract) {
   const auto [nx, ny] = GetParam();
   SharedDir dir;
-  const Checkpoint g = global_checkpoint(nx, ny);
+  const Checkpoint g = testing::sample_checkpoint(nx, ny);
   const Layout l = square_layout(world_size());
   const TileSlab slab = tile_of(l, nx, ny, world_rank());
   const int cx = block(nx, l.px), cy = block(ny, l.py);
@@ -580,7 +546,7 @@ TEST_P(ParallelCheckpoint, ReadsBackUnderAnyTiling) {
   const auto [nx, ny] = GetParam();
   SharedDir dir;
   const int rank = world_rank(), ranks = world_size();
-  const Checkpoint g = global_checkpoint(nx, ny);
+  const Checkpoint g = testing::sample_checkpoint(nx, ny);
   const Layout wl = square_layout(ranks);
   const TileSlab wslab = tile_of(wl, nx, ny, rank);
   const std::string path = dir.file("ckpt.h5");
@@ -661,7 +627,7 @@ TEST(ParallelFailure, BadTileOnOneRankThrowsEverywhereAndKeepsTheOldFile) {
   SharedDir dir;
   const int rank = world_rank(), last = world_size() - 1;
   const GlobalSnapshot g(nx, ny);
-  const Checkpoint gc = global_checkpoint(nx, ny);
+  const Checkpoint gc = testing::sample_checkpoint(nx, ny);
   const Layout l = square_layout(world_size());
   const TileSlab slab = tile_of(l, nx, ny, rank);
   const int cx = block(nx, l.px), cy = block(ny, l.py);
@@ -740,7 +706,7 @@ TEST(ParallelFailure, RanksThatDisagreeOnMetadataThrowEverywhere) {
   EXPECT_TRUE(contains(m, "rank " + std::to_string(last))) << m;
   old.expect_intact("time_days");
 
-  Checkpoint c = checkpoint_tile(global_checkpoint(nx, ny), slab);
+  Checkpoint c = checkpoint_tile(testing::sample_checkpoint(nx, ny), slab);
   if (rank == last) c.ledger[1].second = "7";
   m = error_of([&] { write_checkpoint_parallel(MPI_COMM_WORLD, path, c, slab, cx, cy); });
   expect_failed_everywhere(m, path, "disagree on 'ledger_bedrock_eroded'");
@@ -775,7 +741,7 @@ TEST(ParallelFailure, IoFailuresThrowEverywhereAndLeaveNoTemporary) {
   }
 
   const std::string nowhere = dir.file("no/such/dir/ckpt.h5");
-  const Checkpoint c = checkpoint_tile(global_checkpoint(nx, ny), slab);
+  const Checkpoint c = checkpoint_tile(testing::sample_checkpoint(nx, ny), slab);
   m = error_of([&] { write_checkpoint_parallel(MPI_COMM_WORLD, nowhere, c, slab, cx, cy); });
   expect_failed_everywhere(m, nowhere, "cannot create temporary file");
   MPI_Barrier(MPI_COMM_WORLD);
@@ -887,7 +853,7 @@ TEST(ParallelFailure, ReaderErrorsReachEveryRank) {
   expect_failed_everywhere(m, snap, "not an erg checkpoint");
 
   const std::string ckpt = dir.file("ckpt.h5");
-  if (rank == 0) write_checkpoint(ckpt, global_checkpoint(nx, ny));
+  if (rank == 0) write_checkpoint(ckpt, testing::sample_checkpoint(nx, ny));
   MPI_Barrier(MPI_COMM_WORLD);
   TileSlab outside = slab;
   if (rank == world_size() - 1) outside.x0 = nx - outside.nx + 1;
