@@ -219,7 +219,6 @@ SnapshotFields global_fields(const GlobalSnapshot& g, bool optional) {
   return f;
 }
 
-
 Checkpoint checkpoint_tile(const Checkpoint& g, const TileSlab& s) {
   Checkpoint c;
   c.step = g.step;
