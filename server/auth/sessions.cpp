@@ -1,27 +1,19 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "auth/sessions.h"
 
-#include <openssl/rand.h>
-
 #include <stdexcept>
 #include <vector>
 
+#include "auth/random_hex.h"
 #include "util/sha256.h"
 
 namespace erg::server {
 
 namespace {
 
+// 256-bit session ids.
 std::string random_id() {
-  unsigned char b[32];
-  if (RAND_bytes(b, sizeof b) != 1) throw std::runtime_error("no random bytes for a session id");
-  static const char* hex = "0123456789abcdef";
-  std::string s;
-  for (unsigned char c : b) {
-    s += hex[c >> 4];
-    s += hex[c & 15];
-  }
-  return s;
+  return random_hex(32);
 }
 
 }  // namespace

@@ -3,7 +3,6 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
-#include <sys/random.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -17,6 +16,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "auth/random_hex.h"
 #include "io/atomic_file.h"
 
 namespace erg::server {
@@ -65,23 +65,7 @@ class DirLock {
 }  // namespace
 
 std::string new_token() {
-  unsigned char bytes[24];
-  std::size_t got = 0;
-  while (got < sizeof bytes) {
-    const ssize_t n = ::getrandom(bytes + got, sizeof bytes - got, 0);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      fail_errno("getrandom", "no random bytes", errno);
-    }
-    got += static_cast<std::size_t>(n);
-  }
-  static const char* hex = "0123456789abcdef";
-  std::string t;
-  for (unsigned char b : bytes) {
-    t += hex[b >> 4];
-    t += hex[b & 15];
-  }
-  return t;
+  return random_hex(24);
 }
 
 void append_token(const std::string& path, const std::string& token, const std::string& tenant,
