@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "io/install_paths.h"
 #include "job/map_file.h"
 #include "job/run_flags.h"
 #include "job/spec.h"
@@ -36,12 +37,8 @@ namespace fs = std::filesystem;
 
 std::string worker_path() {
   if (const char* env = std::getenv("ERG_WORKER")) return env;
-  std::error_code ec;
-  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    const fs::path w = self.parent_path() / "erg-worker";
-    if (fs::exists(w)) return w.string();
-  }
+  const fs::path dir = io::program_dir();
+  if (!dir.empty() && fs::exists(dir / "erg-worker")) return (dir / "erg-worker").string();
   return "erg-worker";
 }
 

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "io/install_paths.h"
 
 namespace erg::client {
 
@@ -24,19 +25,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// $ERG_VALIDATE_DIR, else the source tree's client/validate (compiled in,
-// as the tests find examples/), else ../share/erg/validate next to the
-// binary for an installed erg.
+// $ERG_VALIDATE_DIR, else the installed share/erg/validate next to the
+// binary, else the source tree's client/validate (compiled in, for a build
+// tree's erg, as the tests find examples/).
 std::string validate_dir() {
-  if (const char* env = std::getenv("ERG_VALIDATE_DIR")) return env;
-  if (fs::exists(fs::path(ERG_VALIDATE_DIR) / "validate.py")) return ERG_VALIDATE_DIR;
-  std::error_code ec;
-  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    const fs::path d = self.parent_path().parent_path() / "share" / "erg" / "validate";
-    if (fs::exists(d / "validate.py")) return d.string();
-  }
-  return ERG_VALIDATE_DIR;
+  if (const char* env = std::getenv("ERG_VALIDATE_DIR"); env && *env) return env;
+  return io::shipped_file("validate", ERG_VALIDATE_DIR);
 }
 
 }  // namespace

@@ -33,6 +33,7 @@
 #include "auth/token_cmd.h"
 #include "auth/tokens.h"
 #include "http/http_api.h"
+#include "io/install_paths.h"
 #include "launch/local_launcher.h"
 #include "launch/slurm_launcher.h"
 #include "metrics/metrics.h"
@@ -63,7 +64,7 @@ void usage() {
          "            [--min-free-disk BYTES (268435456): below this much free space in\n"
          "             --data, new jobs are refused (RESOURCE_EXHAUSTED) and queued ones wait]\n"
          "            [--launcher local|slurm (local)]\n"
-         "  Slurm:     [--slurm-template FILE (deploy/slurm/ergd-job.sbatch)]\n"
+         "  Slurm:     [--slurm-template FILE (share/erg/slurm/ergd-job.sbatch)]\n"
          "            [--slurm-partition P] [--slurm-account A] [--slurm-time-limit MINUTES (60)]\n"
          "            [--slurm-gpus-per-node G (0)] [--slurm-signal SECONDS (120): SIGTERM\n"
          "             this long before the walltime; the job checkpoints and resumes]\n";
@@ -203,7 +204,7 @@ void check_flags(const Options& o) {
 // Throws std::invalid_argument naming the flag at fault.
 Options parse_flags(int argc, char** argv) {
   Options o;
-  o.slurm.template_path = ERG_SLURM_TEMPLATE;
+  o.slurm.template_path = erg::io::shipped_file("slurm/ergd-job.sbatch", ERG_SLURM_TEMPLATE);
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {

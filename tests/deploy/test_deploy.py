@@ -115,6 +115,35 @@ class Deploy(unittest.TestCase):
                             "--steps", "3"], capture_output=True, text=True, timeout=300)
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertTrue(os.path.isfile(os.path.join(out, "snapshots", "step_00000003.h5")))
+        self.check_installed_programs_read_installed_files(prefix)
+
+    def check_installed_programs_read_installed_files(self, prefix):
+        """The installed erg validate runs P/share/erg/validate, and the installed
+        ergd's default Slurm template is P/share/erg/slurm's: each is swapped
+        for a file that gives itself away (a script that says so, an empty
+        template that ergd refuses by its path), which the source tree's
+        copies cannot."""
+        share = os.path.join(prefix, "share", "erg")
+        self.assertTrue(os.path.isfile(os.path.join(share, "validate", "validate.py")))
+        self.assertTrue(os.path.isfile(os.path.join(share, "validate", "thresholds.json")))
+        with open(os.path.join(share, "validate", "validate.py"), "w") as f:
+            f.write("import sys\nprint('installed validate.py', sys.argv[1:])\n")
+        r = subprocess.run([os.path.join(prefix, "bin", "erg"), "validate", "--quick", "--out",
+                            os.path.join(self.tmp, "report")], capture_output=True, text=True,
+                           timeout=60,
+                           env={k: v for k, v in os.environ.items() if k != "ERG_VALIDATE_DIR"})
+        self.assertIn("installed validate.py", r.stdout, r.stdout + r.stderr)
+        template = os.path.join(share, "slurm", "ergd-job.sbatch")
+        open(template, "w").close()  # empty: ergd refuses it, naming its path
+        tokens = os.path.join(self.tmp, "tokens-installed")
+        with open(tokens, "w") as f:
+            f.write("a" * 32 + " alice\n")
+        os.chmod(tokens, 0o600)
+        r = subprocess.run([os.path.join(prefix, "bin", "ergd"), "--listen", "127.0.0.1:0",
+                            "--data", os.path.join(self.tmp, "data"), "--tokens", tokens,
+                            "--launcher", "slurm"], capture_output=True, text=True, timeout=60)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("cannot read the Slurm script template " + template, r.stderr)
 
     def test_token_new_appends_a_random_token(self):
         tokens = os.path.join(self.tmp, "tokens")
