@@ -10,6 +10,7 @@
 #include <type_traits>
 
 #include "backend/cuda/cuda_backend.h"
+#include "backend/device_choice.h"
 #include "stages/events.h"
 #include "stages/vegetation.h"
 
@@ -239,9 +240,7 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
     : m_(model), g_(model.tile), ex_(ex) {
   int devices = 0;
   ERG_CUDA_CHECK(cudaGetDeviceCount(&devices));
-  ERG_CUDA_CHECK(cudaSetDevice(devices > 0 ? local_rank % devices : 0));
-  // One device per process for now (later: local rank % device count).
-  ERG_CUDA_CHECK(cudaSetDevice(0));
+  ERG_CUDA_CHECK(cudaSetDevice(device_for_rank(local_rank, devices)));
 
   const std::size_t n = g_.size();
   fields::each([&](fields::Id id, const fields::Info& f) {
@@ -252,6 +251,7 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
       reals(id).reset(n);
   });
   sand_next_.reset(n);
+  flag_.reset(1);
   h_a_.reset(n);
   h_b_.reset(n);
   frac_.reset(n);
@@ -321,12 +321,24 @@ void CudaBackend::upload(const TileState& s) {
   update_repose();
 }
 
+namespace {
+// Sets *any when a cell, ghosts included (as on the CPU), holds an obstacle.
+// Every writer writes the same 1, so the unordered stores race harmlessly.
+__global__ void any_obstacle_kernel(const float* o, std::size_t n, int* any) {
+  const std::size_t i = flat_index();
+  if (i < n && obstacles::is_obstacle(o[i])) *any = 1;
+}
+}  // namespace
+
+// A device-side reduction to one flag: 4 bytes cross PCIe, not the field.
 void CudaBackend::obstacles_changed() {
-  Field<float> o;
-  copy_out(d_.obstacles, o, g_);
-  bool any = false;
-  for (std::size_t i = 0; i < o.size(); ++i) any |= obstacles::is_obstacle(o.data()[i]);
-  any_obstacles_ = any;
+  int any = 0;
+  ERG_CUDA_CHECK(cudaMemset(flag_.get(), 0, sizeof(int)));
+  const Launch l = flat(d_.obstacles.size());
+  ERG_LAUNCH(any_obstacle_kernel, l.grid, l.block, d_.obstacles.get(), d_.obstacles.size(),
+             flag_.get());
+  ERG_CUDA_CHECK(cudaMemcpy(&any, flag_.get(), sizeof(int), cudaMemcpyDeviceToHost));
+  any_obstacles_ = any != 0;
 }
 
 // Rare (timeline events): on the host, as the CPU backend does it.

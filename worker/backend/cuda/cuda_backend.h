@@ -191,7 +191,7 @@ class CudaBackend final : public Backend {
  public:
   // `ex` (which must outlive the backend) fills ghosts and sums across tiles;
   // with several tiles, ghosts go through host memory (the Debian Open MPI
-  // is not CUDA-aware). The GPU used is local_rank % devices.
+  // is not CUDA-aware). The GPU used is local_rank % devices (device_choice.h).
   CudaBackend(const Model& model, dist::Exchange& ex, int local_rank);
   std::string name() const override { return "cuda"; }
   void upload(const TileState& s) override;
@@ -242,6 +242,7 @@ class CudaBackend final : public Backend {
   DeviceBuffer<float> h_a_, h_b_, frac_;
   DeviceBuffer<units_t> out_;
   DeviceBuffer<double> coarse_mine_;  // this tile's coarse cells
+  DeviceBuffer<int> flag_;            // the yes/no of obstacles_changed's reduction
   DeviceBuffer<int> moved_;           // two flags per avalanching iteration (avalanching.cu)
   // wind warping on the coarse grid
   DeviceBuffer<double> coarse_h_;              // [ny][nx] real input/output of the FFTs
