@@ -97,7 +97,8 @@ __global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h,
 
 }  // namespace
 
-int CudaBackend::avalanche(bool bedrock, int iterations, const Refill& refill) {
+int CudaBackend::avalanche(bool bedrock, int iterations, const Refill& refill, bool* settled) {
+  if (settled) *settled = false;
   if (iterations <= 0) return 0;
   const Offsets off = neighbour_offsets(g_.pitch);
   DeviceBuffer<units_t>& target = bedrock ? d_.bedrock : d_.sand;
@@ -170,6 +171,14 @@ int CudaBackend::avalanche(bool bedrock, int iterations, const Refill& refill) {
       cudaMemcpy(flags.data(), moved_.get(), sizeof(int) * flags.size(), cudaMemcpyDeviceToHost));
   int moved_iterations = 0;
   for (const int f : flags) moved_iterations += f != 0 ? 1 : 0;
+  if (settled && ran > 0) {
+    // The last iteration run had no donor: nothing here exceeds repose, so
+    // the same avalanche on the same terrain is the identity.
+    int donors = 0;
+    ERG_CUDA_CHECK(cudaMemcpy(&donors, moved_.get() + iterations + (ran - 1), sizeof(int),
+                              cudaMemcpyDeviceToHost));
+    *settled = donors == 0;
+  }
   return moved_iterations;
 }
 
@@ -178,8 +187,21 @@ int CudaBackend::avalanche_sand(const Refill& refill) {
   return avalanche(false, m_.avalanche_iterations, refill);
 }
 
+// Bedrock only changes by abrasion and events. Once an avalanche found it
+// settled on every tile, running it again on the same bedrock is the
+// identity, so it is skipped until bedrock changes somewhere, as on the CPU
+// (cpu/avalanching.cpp). Abrasion is learnt from one device flag (4 bytes).
 void CudaBackend::avalanche_bedrock(const Refill& refill) {
-  avalanche(true, m_.bedrock_iterations, refill);
+  int abraded = 0;
+  ERG_CUDA_CHECK(cudaMemcpy(&abraded, abraded_.get(), sizeof(int), cudaMemcpyDeviceToHost));
+  if (abraded != 0) {
+    bedrock_changed_ = true;
+    ERG_CUDA_CHECK(cudaMemset(abraded_.get(), 0, sizeof(int)));
+  }
+  if (!ex_.any(bedrock_changed_)) return;
+  bool settled = false;
+  avalanche(true, m_.bedrock_iterations, refill, &settled);
+  bedrock_changed_ = !settled;
 }
 
 }  // namespace erg::gpu

@@ -252,6 +252,7 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
   });
   sand_next_.reset(n);
   flag_.reset(1);
+  abraded_.reset(1);
   h_a_.reset(n);
   h_b_.reset(n);
   frac_.reset(n);
@@ -318,6 +319,7 @@ void CudaBackend::upload(const TileState& s) {
     else
       copy_in(reals(id), s.reals[id], f.name);
   });
+  bedrock_changed_ = true;
   update_repose();
 }
 
@@ -421,6 +423,7 @@ total_t CudaBackend::apply_sand_brush(const events::Brush& b) {
 }
 
 total_t CudaBackend::apply_bedrock_brush(const events::Brush& b) {
+  bedrock_changed_ = true;
   ERG_LAUNCH(bedrock_brush_kernel, dim3(g_.ny), dim3(kRowThreads), g_, b, d_.bedrock.get(),
              row_sums_.get());
   fetch_rows(g_.ny);

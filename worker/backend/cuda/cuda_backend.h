@@ -219,9 +219,11 @@ class CudaBackend final : public Backend {
   void synchronize() override;
 
  private:
-  void update_repose();                                               // tan_l from vegetation
-  int avalanche(bool bedrock, int iterations, const Refill& refill);  // avalanching.cu
-  void coarse_gradients();  // wind.cu: coarse_h_ -> grad_x_, grad_y_
+  void update_repose();  // tan_l from vegetation
+  // `settled` (if given): the last iteration found no donor on this tile.
+  int avalanche(bool bedrock, int iterations, const Refill& refill,
+                bool* settled = nullptr);  // avalanching.cu
+  void coarse_gradients();                 // wind.cu: coarse_h_ -> grad_x_, grad_y_
   // Per-row partial sums: copy the first `count` of row_sums_ to the host,
   // then add host_rows_[first, first + count) in a fixed order.
   void fetch_rows(int count);
@@ -237,12 +239,16 @@ class CudaBackend final : public Backend {
   DeviceBuffer<units_t>& units(fields::Id id) { return d_.units[id]; }
   DeviceBuffer<float>& reals(fields::Id id) { return d_.reals[id]; }
   bool any_obstacles_ = false;  // on this tile or its ghosts (saltation's slow path)
+  // Since bedrock avalanching last found the bedrock settled (as on the CPU);
+  // abrasion, found on the device, reaches it through abraded_.
+  bool bedrock_changed_ = true;
   // reptation / avalanching work buffers
   DeviceBuffer<units_t> sand_next_;
   DeviceBuffer<float> h_a_, h_b_, frac_;
   DeviceBuffer<units_t> out_;
   DeviceBuffer<double> coarse_mine_;  // this tile's coarse cells
   DeviceBuffer<int> flag_;            // the yes/no of obstacles_changed's reduction
+  DeviceBuffer<int> abraded_;         // set by saltation's impact when it abraded bedrock
   DeviceBuffer<int> moved_;           // two flags per avalanching iteration (avalanching.cu)
   // wind warping on the coarse grid
   DeviceBuffer<double> coarse_h_;              // [ny][nx] real input/output of the FFTs

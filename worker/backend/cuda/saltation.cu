@@ -93,7 +93,7 @@ __global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t see
                               units_t* bedrock, units_t* airborne, const float* shadow,
                               const float* vegetation, const float* resistance, const float* wind_x,
                               const float* wind_y, const float* echo, float* reptation,
-                              units_t* deposited) {
+                              units_t* deposited, int* abraded) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -109,6 +109,7 @@ __global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t see
   airborne[i] = im.bounced;
   reptation[i] = im.reptation_m;
   deposited[i] = im.deposited;
+  if (im.abraded != 0) *abraded = 1;  // every writer writes 1: a harmless race
 }
 
 }  // namespace
@@ -137,7 +138,7 @@ void CudaBackend::saltation_impact(std::int64_t step) {
   ERG_LAUNCH(impact_kernel, l.grid, l.block, g_, p, seed, ustep, d_.landed.get(), d_.sand.get(),
              d_.bedrock.get(), d_.airborne.get(), d_.shadow.get(), d_.vegetation.get(),
              d_.resistance.get(), d_.wind_x.get(), d_.wind_y.get(), d_.echo.get(),
-             d_.reptation.get(), d_.deposited.get());
+             d_.reptation.get(), d_.deposited.get(), abraded_.get());
 }
 
 }  // namespace erg::gpu
