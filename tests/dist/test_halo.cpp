@@ -17,6 +17,7 @@
 
 #include "dist/decomposition.h"
 #include "dist/halo.h"
+#include "dist/halo_frame.h"
 
 namespace erg::dist {
 namespace {
@@ -366,6 +367,55 @@ TEST_P(Halo, SumMatchesPeriodicFold) {
   check_sum<std::int64_t>(hx, s);
   check_sum<float>(hx, s);
   check_sum<double>(hx, s);
+}
+
+// A device backend stages only the halo frame through the host (the CUDA
+// backend's ghosts()): pack the device field's frame into a host field whose
+// other cells are garbage, exchange there, and unpack the frame back. The
+// result must be the exchange of the whole field, bit for bit, and the bytes
+// staged are the frame's, twice (there and back).
+template <class T>
+void check_staged(HaloExchanger& hx, const TileSetup& s) {
+  for (int w = 1; w <= std::min(8, s.max_width()); ++w)
+    for (const bool sum : {false, true}) {
+      Field<T> whole = sum ? sum_input<T>(s, s.i, s.j, w) : fill_input<T>(s.g);
+      Field<T> device = whole;
+      Field<T> host(s.g, static_cast<T>(-12345));  // what was staged before
+      if (sum)
+        hx.sum(whole, w);
+      else
+        hx.fill(whole, w);
+      const HaloFrame fr{s.g.nx, s.g.ny, w};
+      std::vector<T> pinned(fr.size());
+      long long staged = 0;
+      pack_frame(device, fr, pinned.data());
+      unpack_frame(pinned.data(), fr, host);
+      staged += static_cast<long long>(fr.size() * sizeof(T));
+      if (sum)
+        hx.sum(host, w);
+      else
+        hx.fill(host, w);
+      pack_frame(host, fr, pinned.data());
+      unpack_frame(pinned.data(), fr, device);
+      staged += static_cast<long long>(fr.size() * sizeof(T));
+      EXPECT_EQ(std::memcmp(whole.data(), device.data(), whole.size() * sizeof(T)), 0)
+          << (sum ? "sum" : "fill") << " w " << w;
+      // The strips: the ghost ring within w and the owned ring within w.
+      const long long nx = s.g.nx, ny = s.g.ny;
+      const long long ring =
+          (nx + 2 * w) * (ny + 2 * w) - std::max(0LL, nx - 2 * w) * std::max(0LL, ny - 2 * w);
+      EXPECT_EQ(staged, 2 * ring * static_cast<long long>(sizeof(T)));
+      // Never more than the whole padded field (equal on tiles no wider
+      // than 2 w, where the frame is the whole tile and its ghosts).
+      EXPECT_LE(staged, 2 * static_cast<long long>(s.g.size() * sizeof(T)));
+    }
+}
+
+TEST_P(Halo, StagingTheFrameEqualsStagingTheWholeField) {
+  const TileSetup s(GetParam());
+  HaloExchanger hx(s.cart, s.g);
+  check_staged<std::int64_t>(hx, s);
+  check_staged<float>(hx, s);
 }
 
 // fill() after sum() on the same field: the folded owned values reach every

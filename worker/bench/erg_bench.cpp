@@ -348,6 +348,10 @@ int main(int argc, char** argv) {
   const double halo_messages =
       slowest(static_cast<double>(halo1.messages - halo0.messages) / a.steps);
   const double halo_bytes = slowest(static_cast<double>(halo1.bytes - halo0.bytes) / a.steps);
+  // Bytes a device backend copied between device and host for the halos
+  // (0 on the CPU backend and on one tile).
+  const double staged_bytes =
+      slowest(static_cast<double>(halo1.host_staged_bytes - halo0.host_staged_bytes) / a.steps);
   // Iterations that moved sand anywhere: every tile runs as many as the
   // most active one (they exchange in rounds together).
   const double iters_per_step = slowest(
@@ -383,7 +387,7 @@ int main(int argc, char** argv) {
     << ",\"warmup_ms_per_step\":" << warmup_ms << ",\"cell_updates_per_s\":" << std::scientific
     << cells * a.steps / (total_ms * 1e-3) << std::fixed
     << ",\"halo_messages_per_step\":" << halo_messages << ",\"halo_bytes_per_step\":" << halo_bytes
-    << ",\"stage_ms\":{";
+    << ",\"host_staged_bytes_per_step\":" << staged_bytes << ",\"stage_ms\":{";
   for (int k = 0; k < erg::kStageCount; ++k)
     o << (k ? "," : "") << "\"" << erg::kStageNames[k] << "\":" << stage_ms[static_cast<size_t>(k)];
   o << "},\"bytes_per_step_model\":" << std::scientific << bytes_per_step << std::fixed
@@ -404,6 +408,9 @@ int main(int argc, char** argv) {
     if (nranks > 1)
       std::cout << "  halo exchange: " << halo_messages << " messages, " << halo_bytes / 1e6
                 << " MB per rank and step (the slowest rank's stage times below)\n";
+    if (staged_bytes > 0)
+      std::cout << "  staged between device and host for the halos: " << staged_bytes / 1e6
+                << " MB per rank and step\n";
     for (int k = 0; k < erg::kStageCount; ++k)
       std::cout << "  " << erg::kStageNames[k] << ": " << stage_ms[static_cast<size_t>(k)]
                 << " ms\n";

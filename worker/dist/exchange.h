@@ -35,13 +35,28 @@ class Exchange {
   // whole grid, row-major [cny][cnx]. Tiles are aligned to coarse cells.
   virtual void gather_coarse(const std::vector<double>& mine, std::vector<double>& all) = 0;
 
-  // Messages and bytes sent by this tile so far (0 on one process).
+  // Messages and bytes sent by this tile so far (0 on one process), and the
+  // bytes a device backend staged through host memory for the exchanges
+  // (both directions, as it reports them with count_host_staged).
   struct Stats {
     long long messages = 0;
     long long bytes = 0;
+    long long host_staged_bytes = 0;
   };
-  virtual Stats stats() const { return {}; }
+  Stats stats() const {
+    Stats s = traffic();
+    s.host_staged_bytes = host_staged_;
+    return s;
+  }
+  void count_host_staged(long long bytes) { host_staged_ += bytes; }
   virtual int tiles() const { return 1; }
+
+ protected:
+  // Messages and bytes sent (host_staged_bytes is the base class's).
+  virtual Stats traffic() const { return {}; }
+
+ private:
+  long long host_staged_ = 0;
 };
 
 // One tile that is the whole torus: ghosts wrap onto its own cells.

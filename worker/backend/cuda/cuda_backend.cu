@@ -11,6 +11,7 @@
 
 #include "backend/cuda/cuda_backend.h"
 #include "backend/device_choice.h"
+#include "dist/halo_frame.h"
 #include "stages/events.h"
 #include "stages/vegetation.h"
 
@@ -447,10 +448,61 @@ Totals CudaBackend::totals() {
   return {all[0], all[1], all[2]};
 }
 
+namespace {
+template <class T>
+__global__ void pack_frame_kernel(const T* f, TileGeom g, dist::HaloFrame fr, T* out) {
+  const std::size_t i = flat_index();
+  if (i >= fr.size()) return;
+  int x, y;
+  fr.cell(i, x, y);
+  out[i] = f[g.at(x, y)];
+}
+
+template <class T>
+__global__ void unpack_frame_kernel(const T* in, TileGeom g, dist::HaloFrame fr, T* f) {
+  const std::size_t i = flat_index();
+  if (i >= fr.size()) return;
+  int x, y;
+  fr.cell(i, x, y);
+  f[g.at(x, y)] = in[i];
+}
+}  // namespace
+
+template <class T>
+void CudaBackend::frame_to_host(const DeviceBuffer<T>& d, Field<T>& h, int w) {
+  const dist::HaloFrame fr{g_.nx, g_.ny, w < g_.halo ? w : g_.halo};
+  const std::size_t n = fr.size(), bytes = n * sizeof(T);
+  if (n == 0) return;
+  if (frame_dev_.size() < bytes) frame_dev_.reset(bytes);
+  T* packed = reinterpret_cast<T*>(frame_dev_.get());
+  const Launch l = flat(n);
+  ERG_LAUNCH(pack_frame_kernel<T>, l.grid, l.block, d.get(), g_, fr, packed);
+  T* host = static_cast<T*>(frame_host_.at_least(bytes));
+  ERG_CUDA_CHECK(cudaMemcpy(host, packed, bytes, cudaMemcpyDeviceToHost));
+  dist::unpack_frame(host, fr, h);
+  ex_.count_host_staged(static_cast<long long>(bytes));
+}
+
+template <class T>
+void CudaBackend::frame_to_device(const Field<T>& h, DeviceBuffer<T>& d, int w) {
+  const dist::HaloFrame fr{g_.nx, g_.ny, w < g_.halo ? w : g_.halo};
+  const std::size_t n = fr.size(), bytes = n * sizeof(T);
+  if (n == 0) return;
+  if (frame_dev_.size() < bytes) frame_dev_.reset(bytes);
+  T* host = static_cast<T*>(frame_host_.at_least(bytes));
+  dist::pack_frame(h, fr, host);
+  T* packed = reinterpret_cast<T*>(frame_dev_.get());
+  ERG_CUDA_CHECK(cudaMemcpy(packed, host, bytes, cudaMemcpyHostToDevice));
+  const Launch l = flat(n);
+  ERG_LAUNCH(unpack_frame_kernel<T>, l.grid, l.block, packed, g_, fr, d.get());
+  ex_.count_host_staged(static_cast<long long>(bytes));
+}
+
 // On one tile the periodic wrap runs on the device (a fill copies owners
-// into ghosts, a sum folds ghosts into owners); with several tiles the
-// fields go through host staging buffers and the exchange, all of them in
-// one message per neighbour.
+// into ghosts, a sum folds ghosts into owners). With several tiles only each
+// field's halo frame (the ghosts and the owned cells within the width of the
+// edge, dist/halo_frame.h) crosses to its host staging field, where the
+// exchange sends all of them in one message per neighbour, and back.
 void CudaBackend::ghosts(GhostOp op, std::span<const FieldGhosts> fields) {
   const auto is_units = [](fields::Id id) { return fields::info(id).type == fields::Type::kUnits; };
   if (ex_.tiles() == 1) {
@@ -472,12 +524,12 @@ void CudaBackend::ghosts(GhostOp op, std::span<const FieldGhosts> fields) {
     if (is_units(f.id)) {
       Field<units_t>& host = stage_.units[f.id];
       if (host.size() != units(f.id).size()) host.reset(g_);
-      if (op != GhostOp::kFinishFill) copy_out(units(f.id), host, g_);
+      if (op != GhostOp::kFinishFill) frame_to_host(units(f.id), host, f.width);
       list.push_back({&host, f.width});
     } else {
       Field<float>& host = stage_.reals[f.id];
       if (host.size() != reals(f.id).size()) host.reset(g_);
-      if (op != GhostOp::kFinishFill) copy_out(reals(f.id), host, g_);
+      if (op != GhostOp::kFinishFill) frame_to_host(reals(f.id), host, f.width);
       list.push_back({&host, f.width});
     }
   }
@@ -485,9 +537,9 @@ void CudaBackend::ghosts(GhostOp op, std::span<const FieldGhosts> fields) {
   if (op == GhostOp::kBeginFill) return;  // uploaded at kFinishFill
   for (const FieldGhosts& f : fields) {
     if (is_units(f.id))
-      copy_in(units(f.id), stage_.units[f.id], fields::info(f.id).name);
+      frame_to_device(stage_.units[f.id], units(f.id), f.width);
     else
-      copy_in(reals(f.id), stage_.reals[f.id], fields::info(f.id).name);
+      frame_to_device(stage_.reals[f.id], reals(f.id), f.width);
   }
 }
 

@@ -86,6 +86,32 @@ class DeviceBuffer {
   std::size_t n_ = 0;
 };
 
+// Page-locked host memory (cudaMallocHost), so that copies to and from the
+// device run at full PCIe speed; grows, never shrinks.
+class PinnedBuffer {
+ public:
+  PinnedBuffer() = default;
+  ~PinnedBuffer() {
+    if (p_) cudaFreeHost(p_);  // no throw from a destructor
+  }
+  PinnedBuffer(const PinnedBuffer&) = delete;
+  PinnedBuffer& operator=(const PinnedBuffer&) = delete;
+  void* at_least(std::size_t bytes) {
+    if (bytes > n_) {
+      if (p_) ERG_CUDA_CHECK(cudaFreeHost(p_));
+      p_ = nullptr;
+      n_ = 0;
+      ERG_CUDA_CHECK(cudaMallocHost(&p_, bytes));
+      n_ = bytes;
+    }
+    return p_;
+  }
+
+ private:
+  void* p_ = nullptr;
+  std::size_t n_ = 0;
+};
+
 // A cuFFT plan, destroyed with its owner.
 class FftPlan {
  public:
@@ -228,11 +254,19 @@ class CudaBackend final : public Backend {
   // then add host_rows_[first, first + count) in a fixed order.
   void fetch_rows(int count);
   total_t sum_rows(int first, int count) const;
+  // The halo frame of width w (dist/halo_frame.h) of a device field to its
+  // host staging field and back, through frame_dev_ and frame_host_.
+  template <class T>
+  void frame_to_host(const DeviceBuffer<T>& d, Field<T>& h, int w);
+  template <class T>
+  void frame_to_device(const Field<T>& h, DeviceBuffer<T>& d, int w);
 
   Model m_;
   TileGeom g_;
   dist::Exchange& ex_;
-  fields::ByField<Field> stage_;  // host staging of ghosts (several tiles), per field
+  fields::ByField<Field> stage_;           // host staging of ghosts (several tiles), per field
+  DeviceBuffer<unsigned char> frame_dev_;  // one field's packed halo frame
+  PinnedBuffer frame_host_;                // ... and its host copy
   // One padded device buffer per registry entry (core/fields.h, TileGeom::at
   // layout), by id or by the name the stages use (d_.sand, d_.reptation, ...).
   fields::Named<DeviceBuffer> d_;
