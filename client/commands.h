@@ -18,6 +18,9 @@ int cmd_export(const std::vector<std::string>& args);
 // Amplified heightmap of a snapshot region (amplify.cpp; worker/amplify/).
 int cmd_amplify(const std::vector<std::string>& args);
 
+// erg wind import (wind_import.cpp): a measured wind record as a job's wind.
+int cmd_wind(const std::vector<std::string>& args);
+
 // erg validate (validate.cpp): the geomorphology suite of client/validate/.
 int cmd_validate(const std::vector<std::string>& args);
 

@@ -74,6 +74,13 @@ const CommandUsage kUsage[] = {
      "  erg amplify DIR [--step S] [--region X0,Y0,W,H] [--upsample K] --out FILE.h5\n"
      "                       a snapshot region upsampled K times (default 4) with ripples\n"
      "                       and sand bumps: HDF5 /height and a FILE.png preview\n"},
+    {"wind",
+     "  erg wind import FILE --format csv|netcdf [--point LAT,LON | --x I --y J]\n"
+     "                  [--height 10] [--roughness Z0] [--rose [--sectors 16] [--speed-bin 1]]\n"
+     "                  [--job JOB.json | --step-hours H] [--out FILE] [--png ROSE.png]\n"
+     "                       an hourly wind record (CSV time,u,v or time,speed,direction;\n"
+     "                       ERA5 netCDF u10/v10) as {\"wind\": ...} for a job: a series (or\n"
+     "                       a rose); prints its rose and DP/RDP/RDD, draws the sand rose\n"},
     {"validate",
      "  erg validate --out DIR [--quick] [--threads T] [--reuse]\n"
      "                       run the geomorphology scenes, write DIR/report.md (laws, plots)\n"},
@@ -178,6 +185,7 @@ int main(int argc, char** argv) {
   if (cmd == "export") return cmd_export(args);
   if (cmd == "amplify") return cmd_amplify(args);
   if (cmd == "validate") return cmd_validate(args);
+  if (cmd == "wind") return cmd_wind(args);
   if (cmd == "params") {
     std::cout << erg::job::parameter_table_markdown();
     return 0;

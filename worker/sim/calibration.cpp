@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 #include <sstream>
+#include <vector>
 
 #include "core/units.h"
 #include "job/spec.h"
@@ -140,16 +141,14 @@ Drift wind_drift(const erg::v1::JobSpec& spec, const Calibration& c, int steps) 
   d.steps = steps;
   const physics::Sand s = physics::sand_of(spec);
   if (spec.wind().has_rose()) {
-    const double k = physics::ustar_per_speed(spec.wind(), s);
-    double rx = 0, ry = 0;
-    for (const auto& e : spec.wind().rose().entries()) {
-      const double q = physics::flux_bulk(s, k * e.speed_mps());
-      d.law_dp += e.probability() * q;
-      rx += e.probability() * q * std::cos(e.direction_deg() * kPi / 180);
-      ry += e.probability() * q * std::sin(e.direction_deg() * kPi / 180);
-    }
-    d.law_rdp = std::hypot(rx, ry);
-    d.law_rdd_deg = std::atan2(ry, rx) * 180 / kPi;
+    std::vector<physics::WindShare> winds;
+    for (const auto& e : spec.wind().rose().entries())
+      winds.push_back({e.direction_deg(), e.speed_mps(), e.probability()});
+    const physics::DriftPotential p =
+        physics::drift_potential(s, physics::ustar_per_speed(spec.wind(), s), winds);
+    d.law_dp = p.dp;
+    d.law_rdp = p.rdp;
+    d.law_rdd_deg = p.rdd_deg;
   }
   std::map<std::pair<float, float>, FlatBedFlux> measured;
   double sx = 0, sy = 0;

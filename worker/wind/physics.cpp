@@ -84,6 +84,22 @@ double ustar_per_speed(const erg::v1::WindRegime& w, const Sand& s) {
   return s.kappa / std::log(w.height_m() / z0);
 }
 
+DriftPotential drift_potential(const Sand& s, double ustar_per_speed,
+                               const std::vector<WindShare>& winds) {
+  constexpr double kPi = 3.14159265358979323846;
+  DriftPotential d;
+  double rx = 0, ry = 0;
+  for (const WindShare& w : winds) {
+    const double q = w.weight * flux_bulk(s, ustar_per_speed * w.speed_mps);
+    d.dp += q;
+    rx += q * std::cos(w.direction_deg * kPi / 180);
+    ry += q * std::sin(w.direction_deg * kPi / 180);
+  }
+  d.rdp = std::hypot(rx, ry);
+  d.rdd_deg = std::atan2(ry, rx) * 180 / kPi;
+  return d;
+}
+
 double model_gain(const Sand& s) {
   return std::log(10.0 / (s.d / 30.0)) / s.kappa;
 }

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "erg/v1/job.pb.h"
 
@@ -49,5 +50,21 @@ double ustar_per_speed(const erg::v1::WindRegime& w, const Sand& s);
 // gives the local u* = |w| / model_gain: a speed-up of the wind is a speed-up
 // of u*.
 double model_gain(const Sand& s);
+
+// Drift potentials of a set of winds (Fryberger & Dean 1979) with the flux
+// law of `s` in place of their V^2 (V - V_t): each wind's bulk flux
+// q = flux_bulk(u* = ustar_per_speed * speed) weighted by its share of the
+// time. DP: the mean magnitude; RDP: the magnitude of the mean vector; RDD:
+// its direction, degrees ccw from +x (towards). m^2/s of bulk sand.
+struct WindShare {
+  double direction_deg = 0;  // towards, ccw from +x
+  double speed_mps = 0;      // in the regime's speed_is
+  double weight = 0;         // share of the time (the weights sum to 1)
+};
+struct DriftPotential {
+  double dp = 0, rdp = 0, rdd_deg = 0;
+};
+DriftPotential drift_potential(const Sand& s, double ustar_per_speed,
+                               const std::vector<WindShare>& winds);
 
 }  // namespace erg::physics
