@@ -232,17 +232,16 @@ int cmd_wind(const std::vector<std::string>& all) {
         erg::job::apply_defaults(physical);
         step_s = calibrate(physical).dt_s;
       }
-      // Keyframe step = round((t - t0) / dt). A step has one wind, so the
-      // hours that fall on one step become one keyframe that moves the same
-      // sand: the direction of their mean flux vector and the speed whose
-      // flux (the law's, monotonic above U_t) is its magnitude. A mean wind
-      // vector would not do: the flux is cubic above a threshold, so it
+      // Keyframe step = floor((t - t0) / dt), the step the hour begins in. A step has one wind, so
+      // the hours that fall on one step become one keyframe that moves the same sand: the direction
+      // of their mean flux vector and the speed whose flux (the law's, monotonic above U_t) is its
+      // magnitude. A mean wind vector would not do: the flux is cubic above a threshold, so it
       // would lose most of a windy afternoon averaged with a calm night.
       // Below the threshold (no flux) the mean wind vector is kept.
       auto* s = w.mutable_series();
       auto step_of = [&](std::size_t k) {
         return static_cast<std::int64_t>(
-            std::llround(static_cast<double>(rec.time_s[k] - rec.time_s[0]) / step_s));
+            std::floor(static_cast<double>(rec.time_s[k] - rec.time_s[0]) / step_s));
       };
       for (std::size_t i = 0; i < n;) {
         const std::int64_t step = step_of(i);
