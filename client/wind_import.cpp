@@ -326,8 +326,11 @@ int cmd_wind(const std::vector<std::string>& all) {
     std::vector<double> petals;
     for (const auto& hs : by_sector)
       petals.push_back(physics::drift_potential(sand, k_ustar, hs).dp);
-    io::write_sand_rose_png(a.png, petals, 400);
-    r << "sand rose: " << a.png << " (petals point where the wind comes from, length ~ DP)\n";
+    io::write_sand_rose_png(a.png, petals, towards_bearing(record.rdd_deg),
+                            record.dp > 0 ? record.rdp / record.dp : 0, 400);
+    r << "sand rose: " << a.png
+      << " (petals point where the wind comes from, length ~ DP; the blue line is the resultant "
+         "drift, RDD and RDP/DP)\n";
 
     std::string json = erg::job::to_readable_json(fragment) + "\n";
     if (a.out.empty()) {

@@ -30,6 +30,7 @@ BIN = os.environ.get("ERG_BIN_DIR", os.path.join(HERE, "../../build/bin"))
 ERG = os.path.join(BIN, "erg")
 EXAMPLE = os.path.join(HERE, "../../examples/barchans.json")
 PETAL = (196, 128, 56)  # the petal colour of io::write_sand_rose_png
+RESULTANT = (40, 70, 160)  # its resultant-drift line
 YEAR_S = 3.15576e7
 
 
@@ -111,9 +112,9 @@ def printed_drift(stderr, which):
     return tuple(float(x) for x in m.groups())
 
 
-def petal_pixels(png):
+def petal_pixels(png, colour=PETAL):
     img = np.asarray(Image.open(png).convert("RGB")).astype(int)
-    ys, xs = np.nonzero(np.all(img == PETAL, axis=2))
+    ys, xs = np.nonzero(np.all(img == colour, axis=2))
     return img.shape, xs, ys
 
 
@@ -227,6 +228,11 @@ class WindImport(unittest.TestCase):
         self.assertEqual(img.size, (400, 400))
         self.assertEqual(img.convert("RGB").getpixel((200, 5)), (0, 0, 0))
         self.assertLess(angle_diff(longest_petal_bearing(self.p("rose.png")), 45), 12)
+        # The resultant line: towards the RDD (compass 90 - RDD), RDP/DP long.
+        (h, w, _), xs, ys = petal_pixels(self.p("rose.png"), RESULTANT)
+        dx, dy = xs - (w - 1) / 2, (w - 1) / 2 - ys
+        self.assertLess(angle_diff(math.degrees(math.atan2(dx.mean(), dy.mean())), 90 - got[2]), 2)
+        self.assertAlmostEqual(np.hypot(dx, dy).max() / (0.42 * 400), got[1] / got[0], delta=0.02)
         spec = self.assert_checks(frag)
         self.assertEqual(len(spec["wind"]["rose"]["entries"]), len(rose["entries"]))
         # erg calibrate's law drift of the same rose is the same sum.

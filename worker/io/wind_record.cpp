@@ -326,7 +326,8 @@ WindRecord read_wind_era5(const std::string& path, const GridPick& pick) {
   return r;
 }
 
-void write_sand_rose_png(const std::string& path, const std::vector<double>& drift, int size) {
+void write_sand_rose_png(const std::string& path, const std::vector<double>& drift,
+                         double rdd_bearing_deg, double rdp_over_dp, int size) {
   const int n = static_cast<int>(drift.size());
   const double top = n ? *std::max_element(drift.begin(), drift.end()) : 0;
   const double c = (size - 1) / 2.0, reach = 0.42 * size, sector = 360.0 / std::max(n, 1);
@@ -350,6 +351,12 @@ void write_sand_rose_png(const std::string& path, const std::vector<double>& dri
       // North marker: a black triangle above the circle, pointing up.
       const double h = 0.06 * size;
       if (py < h && std::abs(dx) <= (py + 1) * 0.4) set(0, 0, 0);
+      // The resultant: within 1.5 pixels of the segment from the centre.
+      const double ex = std::sin(rdd_bearing_deg * kPi / 180),
+                   ey = std::cos(rdd_bearing_deg * kPi / 180);
+      const double along = dx * ex + dy * ey;
+      if (along >= 0 && along <= reach * rdp_over_dp && std::abs(dx * ey - dy * ex) <= 1.5)
+        set(40, 70, 160);
     }
   detail::write_png_atomically(
       path, size, size, 8, PNG_COLOR_TYPE_RGB, 3, [&](int row, unsigned char* out) {

@@ -44,7 +44,11 @@ std::string format_iso8601(std::int64_t seconds);
 // The sand rose (Fryberger & Dean 1979): one petal per direction sector,
 // sector k centred on the compass bearing k * 360 / n the wind comes FROM,
 // its length proportional to drift[k] (the longest reaching the edge), a
-// north marker at the top. `size` x `size` RGB, written atomically.
-void write_sand_rose_png(const std::string& path, const std::vector<double>& drift, int size);
+// north marker at the top, and the resultant drift as a blue line from the
+// centre towards the compass bearing `rdd_bearing_deg` (where the sand
+// goes), its length `rdp_over_dp` of the edge. `size` x `size` RGB,
+// written atomically.
+void write_sand_rose_png(const std::string& path, const std::vector<double>& drift,
+                         double rdd_bearing_deg, double rdp_over_dp, int size);
 
 }  // namespace erg::io
