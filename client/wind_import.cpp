@@ -178,9 +178,17 @@ int cmd_wind(const std::vector<std::string>& all) {
     std::vector<std::vector<physics::WindShare>> by_sector(static_cast<std::size_t>(a.sectors));
     const double sector = 360.0 / a.sectors;
     std::vector<int> sector_of(n);
+    std::size_t calms = 0;
     for (std::size_t k = 0; k < n; ++k) {
       hours[k] = {erg_direction(rec.u[k], rec.v[k]), std::hypot(rec.u[k], rec.v[k]),
                   1.0 / static_cast<double>(n)};
+      // A calm (speed 0) has no direction: no sector, and in the rose an
+      // entry of speed 0.
+      if (hours[k].speed_mps == 0) {
+        sector_of[k] = -1;
+        ++calms;
+        continue;
+      }
       sector_of[k] =
           static_cast<int>(std::lround(bearing_from(rec.u[k], rec.v[k]) / sector)) % a.sectors;
       by_sector[static_cast<std::size_t>(sector_of[k])].push_back(hours[k]);
@@ -202,7 +210,8 @@ int cmd_wind(const std::vector<std::string>& all) {
         std::size_t j = i;
         double sum = 0;
         for (; j < cells.size() && cells[j].first == cells[i].first; ++j) sum += cells[j].second;
-        double dir = -90.0 - cells[i].first.first * sector;  // towards, ccw from +x
+        const int sec = cells[i].first.first;
+        double dir = sec < 0 ? 0.0 : -90.0 - sec * sector;  // towards, ccw from +x
         dir = std::remainder(dir, 360.0);
         auto* e = rose.add_entries();
         e->set_direction_deg(tidy(dir));
@@ -312,6 +321,8 @@ int cmd_wind(const std::vector<std::string>& all) {
                     yr(physics::drift_potential(sand, k_ustar, hs).dp));
       r << line;
     }
+    if (calms)
+      r << "  calm " << 100.0 * static_cast<double>(calms) / static_cast<double>(n) << "%\n";
     auto towards_bearing = [](double rdd) {
       double b = 90 - rdd;
       b = std::fmod(b, 360.0);

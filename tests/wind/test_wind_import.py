@@ -222,6 +222,13 @@ class WindImport(unittest.TestCase):
         self.assertIsNotNone(ne, p.stderr)
         share = np.mean(np.round(direction / 22.5) % 16 == 2) * 100
         self.assertAlmostEqual(float(ne.group(1)), share, places=1)
+        # Calms: in the rose as speed 0, in no sector.
+        write_csv(self.p("calm.csv"), ["time", "u", "v"], [[t, 0 if k % 4 else 9, 0] for k, t in enumerate(hours(8))])
+        c = erg("wind", "import", self.p("calm.csv"), "--format", "csv", "--rose", "--png", self.p("c.png"))
+        self.assertIn("  calm 75%", c.stderr)
+        self.assertRegex(c.stderr, r"  W   270\.0 deg\s+25\.0%")
+        entries = json.loads(c.stdout)["wind"]["rose"]["entries"]
+        self.assertEqual(sorted((e.get("speed_mps", 0), e["probability"]) for e in entries), [(0, 0.75), (9, 0.25)])
         # The rose PNG: square, north marker black at the top middle, longest
         # petal towards the north-east.
         img = Image.open(self.p("rose.png"))
