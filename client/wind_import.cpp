@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -32,7 +33,9 @@ constexpr double kSecondsPerYear = 3.15576e7;  // Julian year, as the snapshots'
 struct ImportArgs {
   std::string file, format, job, out, png = "wind_rose.png";
   io::GridPick pick;
-  double height_m = 10, roughness_m = 0, step_hours = 0, speed_bin_mps = 1;
+  // Absent: the proto's defaults for WindRegime (10 m; 0, meaning d/30).
+  std::optional<double> height_m, roughness_m;
+  double step_hours = 0, speed_bin_mps = 1;
   int sectors = 16;
   bool rose = false;
 };
@@ -110,8 +113,6 @@ ImportArgs parse_import_args(const std::vector<std::string>& args) {
   if (a.pick.by_index && !(x && y)) throw std::invalid_argument("--x and --y go together");
   if ((a.pick.by_point || a.pick.by_index) && a.format != "netcdf")
     throw std::invalid_argument("--point and --x/--y choose a grid point of a netCDF file");
-  if (a.roughness_m >= a.height_m)
-    throw std::invalid_argument("--roughness must be below --height");
   return a;
 }
 
@@ -168,8 +169,19 @@ int cmd_wind(const std::vector<std::string>& all) {
     if (!a.job.empty()) spec = erg::job::load_job_file(a.job);
     erg::v1::WindRegime w;
     w.set_speed_is(erg::v1::WindRegime::WIND_AT_HEIGHT);
-    w.set_height_m(a.height_m);
-    w.set_roughness_m(a.roughness_m);
+    if (a.height_m) w.set_height_m(*a.height_m);
+    if (a.roughness_m) w.set_roughness_m(*a.roughness_m);
+    {
+      erg::v1::JobSpec d;
+      *d.mutable_wind() = w;
+      erg::job::apply_defaults(d);
+      w.set_height_m(d.wind().height_m());
+      w.set_roughness_m(d.wind().roughness_m());
+    }
+    if (w.roughness_m() >= w.height_m())
+      throw std::invalid_argument("--roughness " + std::to_string(w.roughness_m()) +
+                                  " m must be below --height " + std::to_string(w.height_m()) +
+                                  " m");
     const physics::Sand sand = physics::sand_of(spec);
     const double k_ustar = physics::ustar_per_speed(w, sand);
 
@@ -303,8 +315,8 @@ int cmd_wind(const std::vector<std::string>& all) {
     r << "record: " << n << " winds, " << io::format_iso8601(rec.time_s.front()) << " to "
       << io::format_iso8601(rec.time_s.back())
       << (rec.where.empty() ? std::string() : ", " + rec.where) << "\n"
-      << "winds at " << a.height_m
-      << " m over z0 = " << (a.roughness_m > 0 ? a.roughness_m : sand.d / 30)
+      << "winds at " << w.height_m()
+      << " m over z0 = " << (w.roughness_m() > 0 ? w.roughness_m() : sand.d / 30)
       << " m: u* = " << k_ustar
       << " U (law of the wall); threshold u_t = " << physics::threshold(sand)
       << " m/s, U_t = " << physics::threshold(sand) / k_ustar << " m/s; flux law "

@@ -345,6 +345,10 @@ class WindImport(unittest.TestCase):
         p = erg("wind", "import", self.p("ok.csv"), "--format", "csv", check=False)
         self.assertEqual(p.returncode, 2)
         self.assertIn("--step-hours", p.stderr)
+        p = erg("wind", "import", self.p("ok.csv"), "--format", "csv", "--rose", "--height", "0.2",
+                "--roughness", "0.5", check=False)
+        self.assertEqual(p.returncode, 2)
+        self.assertIn("--roughness 0.500000 m must be below --height 0.200000 m", p.stderr)
         self.assertEqual([f for f in os.listdir(self.d) if ".tmp-" in f], [])
 
 
