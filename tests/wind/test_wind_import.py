@@ -342,6 +342,11 @@ class WindImport(unittest.TestCase):
         p = erg("wind", "import", self.p("ok.csv"), "--format", "netcdf", check=False)
         self.assertNotEqual(p.returncode, 0)
         self.assertIn("is not an HDF5 file", p.stderr)
+        xr.Dataset({"u10": (("time",), np.zeros(2))}).to_netcdf(self.p("nc3.nc"), format="NETCDF3_CLASSIC",
+                                                                 engine="scipy")
+        p = erg("wind", "import", self.p("nc3.nc"), "--format", "netcdf", check=False)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("a netCDF-3 (classic) file", p.stderr)
         p = erg("wind", "import", self.p("ok.csv"), "--format", "csv", check=False)
         self.assertEqual(p.returncode, 2)
         self.assertIn("--step-hours", p.stderr)

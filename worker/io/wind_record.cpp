@@ -196,6 +196,15 @@ double unit_seconds(const std::string& unit) {
 }  // namespace
 
 WindRecord read_wind_era5(const std::string& path, const GridPick& pick) {
+  {
+    // Older CDS downloads are netCDF-3 (classic), which is not HDF5.
+    std::ifstream in(path, std::ios::binary);
+    char magic[4] = {};
+    if (in.read(magic, 4) && magic[0] == 'C' && magic[1] == 'D' && magic[2] == 'F')
+      detail::fail(path,
+                   "a netCDF-3 (classic) file; erg reads netCDF-4 (HDF5): convert it with "
+                   "`nccopy -k nc4 FILE FILE4.nc`");
+  }
   detail::Hdf5Guard guard;
   detail::Hid file = detail::open_hdf5_readonly(path, "ERA5 netCDF file");
   const hid_t f = file.get();
