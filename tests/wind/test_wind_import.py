@@ -262,7 +262,8 @@ class WindImport(unittest.TestCase):
             with xr.open_dataset(path, engine="h5netcdf", mask_and_scale=False) as raw:
                 self.assertEqual(raw.u10.dtype, np.int16)  # really packed
                 scale = float(raw.u10.attrs["scale_factor"])
-            for pick in (["--point", "29.8,10.45"], ["--x", "2", "--y", "1"]):
+            # The nearest point, the same longitude the other way round, indices.
+            for pick in (["--point", "29.8,10.45"], ["--point", "29.75,-349.5"], ["--x", "2", "--y", "1"]):
                 p = erg("wind", "import", path, "--format", "netcdf", *pick, "--step-hours", "1",
                         "--png", self.p("e.png"))
                 self.assertIn("latitude 29.75, longitude 10.5 (--x 2 --y 1)", p.stderr)
