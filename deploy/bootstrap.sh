@@ -44,8 +44,9 @@ packages=(
   # open_mfdataset; ncdump), and
   # ParaView's pvbatch (under a virtual X server) for the XDMF test
   python3-xarray python3-h5netcdf python3-dask netcdf-bin paraview python3-paraview xvfb
-  # the Python package's tests (pip in a venv over the system site packages)
-  python3-venv python3-pip
+  # the Python package (client/python): built offline with setuptools, and its
+  # tests (pip in a venv over the system site packages)
+  python3-venv python3-pip python3-setuptools python3-wheel
 )
 
 missing=()
