@@ -46,6 +46,17 @@ def free_port():
         return s.getsockname()[1]
 
 
+def self_signed_cert(tmp):
+    """(cert.pem, key.pem) in tmp: a certificate for localhost and 127.0.0.1
+    made by the openssl CLI."""
+    cert, key = os.path.join(tmp, "cert.pem"), os.path.join(tmp, "key.pem")
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2",
+                    "-subj", "/CN=localhost", "-addext",
+                    "subjectAltName=DNS:localhost,IP:127.0.0.1",
+                    "-keyout", key, "-out", cert], check=True, capture_output=True)
+    return cert, key
+
+
 def spec_json(nx=64, ny=64, steps=40, snapshot_every=10, checkpoint_every=20, name="test",
               **extra):
     d = {
@@ -85,8 +96,11 @@ def terminal(state):
 class Ergd:
     """One ergd process with its own data directory and ports."""
 
-    def __init__(self, tmp, extra_args=(), data=None, port=None, http_port=None):
+    def __init__(self, tmp, extra_args=(), data=None, port=None, http_port=None, ca=None):
+        """ca: the PEM certificate of a TLS ergd (extra_args name its
+        --tls-cert/--tls-key); the fixture's channel then verifies it."""
         self.tmp = tmp
+        self.ca = ca
         self.data = data or os.path.join(tmp, "data")
         self.port = port or free_port()
         self.http_port = http_port or free_port()
@@ -127,7 +141,12 @@ class Ergd:
                 [ERGD, "--listen", self.addr, "--http", "127.0.0.1:%d" % self.http_port,
                  "--data", self.data, "--tokens", self.tokens, "--cancel-grace", "10"]
                 + self.extra, stdout=logf, stderr=subprocess.STDOUT)
-        self.channel = grpc.insecure_channel(self.addr)
+        if self.ca:
+            with open(self.ca, "rb") as f:
+                creds = grpc.ssl_channel_credentials(root_certificates=f.read())
+            self.channel = grpc.secure_channel(self.addr, creds)
+        else:
+            self.channel = grpc.insecure_channel(self.addr)
         self.stub = G.JobServiceStub(self.channel)
         grpc.channel_ready_future(self.channel).result(timeout=30)
 

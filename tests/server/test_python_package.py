@@ -19,7 +19,8 @@ import unittest
 
 import numpy as np
 
-from ergd_fixture import ALICE, BOB, ErgdTest, S, erg_run, md, sha256, spec_json
+from ergd_fixture import (ALICE, BOB, Ergd, ErgdTest, S, erg_run, md, self_signed_cert, sha256,
+                          spec_json)
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs"))
 import readme_blocks  # noqa: E402
@@ -290,6 +291,32 @@ class PythonPackage(ErgdTest):
         r = subprocess.run([os.path.join(os.environ["ERG_BIN_DIR"], "erg"), "jobs"],
                            env=self.env(ERG_CONFIG=other), capture_output=True, text=True)
         self.assertIn(out, r.stderr)
+
+    def test_tls_with_the_ca_of_the_config_file(self):
+        tmp = os.path.join(self.tmpdir, "tls")
+        os.mkdir(tmp)
+        cert, key = self_signed_cert(tmp)
+        tls = Ergd(tmp, ["--tls-cert", cert, "--tls-key", key], ca=cert)
+        try:
+            job = tls.submit(spec_json(steps=2, snapshot_every=1), token=BOB)
+            conf = os.path.join(tmp, "config")
+            with open(conf, "w") as f:  # ca relative to the file's folder
+                f.write("server = %s\nca = cert.pem\n" % tls.addr)
+            code = """
+                import erg
+                c = erg.Client(token=ARGS["token"])
+                try:
+                    print(json.dumps([c.settings.ca, [j.id for j in c.jobs()]]))
+                except erg.Error as e:
+                    print(json.dumps(e.code.name))
+            """
+            out = self.py(code, env=self.env(ERG_CONFIG=conf, ERG_SERVER=None), token=BOB)
+            self.assertEqual(out, [cert, [job.id]])
+            # Without the ca the client speaks plaintext, which a TLS ergd refuses.
+            out = self.py(code, env=self.env(ERG_SERVER=tls.addr), token=BOB)
+            self.assertEqual(out, "UNAVAILABLE")
+        finally:
+            tls.stop()
 
     def test_readme_python_section_as_written(self):
         parts = [b for b in readme_blocks.blocks() if b.name == "python-client"]

@@ -11,7 +11,7 @@ import urllib.request
 
 import grpc
 
-from ergd_fixture import ALICE, ERGD, G, NoRedirect, S, free_port, md
+from ergd_fixture import ALICE, ERGD, G, NoRedirect, S, free_port, md, self_signed_cert
 
 OPENSSL = shutil.which("openssl")
 
@@ -20,11 +20,7 @@ OPENSSL = shutil.which("openssl")
 class Tls(unittest.TestCase):
     def test_grpc_and_http_over_tls(self):
         tmp = tempfile.mkdtemp(prefix="ergd-tls-")
-        cert, key = os.path.join(tmp, "cert.pem"), os.path.join(tmp, "key.pem")
-        subprocess.run([OPENSSL, "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2",
-                        "-subj", "/CN=localhost", "-addext",
-                        "subjectAltName=DNS:localhost,IP:127.0.0.1",
-                        "-keyout", key, "-out", cert], check=True, capture_output=True)
+        cert, key = self_signed_cert(tmp)
         with open(os.path.join(tmp, "tokens"), "w") as f:
             f.write("%s alice\n" % ALICE)
         port, hport = free_port(), free_port()
