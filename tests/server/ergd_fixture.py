@@ -183,6 +183,24 @@ class Ergd:
             time.sleep(0.1)
         raise AssertionError("job %s did not get there in %d s: %s" % (job_id, timeout, j))
 
+    def kill_and_restart_under(self, client, job_id, until, token=ALICE, timeout=120):
+        """SIGKILLs ergd once job_id gets `until` (see wait) while `client`
+        (a Popen watching the job with stdout and stderr piped) runs,
+        restarts it on the same data and ports, and returns the client's
+        (stdout, stderr) once it ends. Fails when the client gave up at the kill."""
+        try:
+            self.wait(job_id, token, until=until)
+            self.kill()  # SIGKILL: the stream breaks, the worker checkpoints and stops
+            time.sleep(1.0)
+            if client.poll() is not None:
+                raise AssertionError("the client gave up at once: " + client.stderr.read())
+            self.start()
+            return client.communicate(timeout=timeout)
+        finally:
+            if client.poll() is None:
+                client.kill()
+                client.wait()
+
     def fetch_bytes(self, job_id, token=ALICE, step=None, offset=0):
         req = S.StreamSnapshotRequest(id=job_id, latest=step is None, step=step or 0,
                                       offset=offset)

@@ -687,17 +687,7 @@ class Restart(CliTest):
         job_id = self.submit(d)
         watch = subprocess.Popen([ERG, "watch", job_id], env=self.env, stdout=subprocess.PIPE,
                                  stderr=subprocess.PIPE, text=True)
-        try:
-            self.ergd.wait(job_id, until=running_past(300))
-            self.ergd.kill()  # SIGKILL: the stream breaks, the worker checkpoints and stops
-            time.sleep(1.0)
-            self.assertIsNone(watch.poll(), "erg watch gave up at once")
-            self.ergd.start()  # same data and ports
-            out, err = watch.communicate(timeout=120)
-        finally:
-            if watch.poll() is None:
-                watch.kill()
-                watch.wait()
+        out, err = self.ergd.kill_and_restart_under(watch, job_id, until=running_past(300))
         self.assertEqual(watch.returncode, 0, err)
         self.assertEqual(out, "")
         self.assertIn("erg: lost ergd at %s (" % self.ergd.addr, err)

@@ -14,13 +14,12 @@ import shutil
 import subprocess
 import sys
 import textwrap
-import time
 import unittest
 
 import numpy as np
 
 from ergd_fixture import (ALICE, BOB, Ergd, ErgdTest, S, erg_run, md, self_signed_cert, sha256,
-                          spec_json)
+                          spec_json, terminal)
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs"))
 import readme_blocks  # noqa: E402
@@ -207,18 +206,8 @@ class PythonPackage(ErgdTest):
         """)
         watch = subprocess.Popen([VPY, "-c", prog, job_id], env=self.env(),
                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        try:
-            self.ergd.wait(job_id, until=lambda j: j.progress.step >= 50 or j.state in (
-                S.SUCCEEDED, S.FAILED, S.CANCELLED))
-            self.ergd.kill()  # SIGKILL: the stream breaks under the client
-            time.sleep(1.0)
-            self.assertIsNone(watch.poll(), "the watch gave up at once")
-            self.ergd.start()  # same data and ports
-            out, err = watch.communicate(timeout=120)
-        finally:
-            if watch.poll() is None:
-                watch.kill()
-                watch.wait()
+        out, err = self.ergd.kill_and_restart_under(
+            watch, job_id, until=lambda j: j.progress.step >= 50 or terminal(j.state))
         self.assertEqual(watch.returncode, 0, err)
         seen = json.loads(out)
         j = self.ergd.get(job_id)
