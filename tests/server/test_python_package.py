@@ -85,7 +85,7 @@ class PythonPackage(ErgdTest):
     def test_submit_watch_status_jobs_fetch_open_run(self):
         d = spec_json(steps=40, snapshot_every=10, name="py-package")
         out = self.py("""
-            import erg
+            import os, erg
             c = erg.Client()  # ERG_SERVER, ERG_TOKEN
             job = c.submit(ARGS["spec"])
             kinds, steps, ids = [], [], []
@@ -100,6 +100,25 @@ class PythonPackage(ErgdTest):
             running = [j.id for j in c.jobs(state=erg.RUNNING)]
             paths = c.fetch(job.id, ARGS["out"], all=True)
             again = c.fetch(job.id, ARGS["out"])  # present and verified: kept
+            # A .part is resumed from its end: a right one completes, a
+            # corrupt one fails the sha256 check and is deleted.
+            with open(paths[-1], "rb") as f:
+                data = f.read()
+            part = os.path.join(ARGS["out"] + "-resumed", os.path.basename(paths[-1]) + ".part")
+            os.makedirs(os.path.dirname(part))
+            with open(part, "wb") as f:
+                f.write(data[:1000])
+            resumed = c.fetch(job.id, os.path.dirname(part), step=40)
+            with open(resumed[0], "rb") as f:
+                resumed_same = f.read() == data
+            os.remove(resumed[0])
+            with open(part, "wb") as f:
+                f.write(data[:999] + bytes([data[999] ^ 1]))
+            try:
+                c.fetch(job.id, os.path.dirname(part), step=40)
+                corrupt = None
+            except erg.Error as e:
+                corrupt = [e.code.name, e.details, os.path.exists(part)]
             ds = erg.open_run(ARGS["out"])
             local = erg.open_run(ARGS["local"])
             print(json.dumps({
@@ -107,6 +126,7 @@ class PythonPackage(ErgdTest):
                 "state": erg.service_pb2.JobState.Name(st.state),
                 "snapshot_steps": list(st.snapshot_steps), "listed": listed, "done": done,
                 "running": running, "paths": paths, "again": again,
+                "resumed_same": resumed_same, "corrupt": corrupt,
                 "dims": list(ds.sand.dims), "sizes": dict(ds.sizes),
                 "x": ds.x.values.tolist(), "y": ds.y.values.tolist(),
                 "time": ds.time.values.tolist(), "units": ds.sand.attrs["units"],
@@ -134,6 +154,10 @@ class PythonPackage(ErgdTest):
                          ["step_%08d.h5" % s for s in (0, 10, 20, 30, 40)])
         self.assertEqual(out["again"], out["paths"][-1:])
         self.assertEqual(glob.glob(os.path.join(self.tmpdir, "fetched", "*.part")), [])
+        self.assertTrue(out["resumed_same"])
+        self.assertEqual(out["corrupt"][0], "DATA_LOSS")
+        self.assertIn("sha256 differs", out["corrupt"][1])
+        self.assertFalse(out["corrupt"][2])
         first, data = self.ergd.fetch_bytes(out["id"])
         with open(out["paths"][-1], "rb") as f:
             self.assertEqual(sha256(f.read()), first.sha256)
