@@ -185,6 +185,9 @@ class PythonPackage(ErgdTest):
                     break
             applied = c.steer(job.id, [{"sand": {"x_m": 20, "y_m": 30, "radius_m": 6,
                                                  "height": 1}}])
+            with open("events.json", "w") as f:  # as `erg steer ID events.json`
+                f.write('{"bedrock": {"x_m": 50, "y_m": 50, "radius_m": 4, "height": 0.5}}')
+            applied += c.steer(job.id, "events.json")
             try:
                 c.steer(job.id, {"vegetation": {"x_m": 1, "y_m": 1, "radius_m": 3,
                                                 "density": 5}})
@@ -199,22 +202,23 @@ class PythonPackage(ErgdTest):
             except erg.Error as e:
                 other = e.code.name
             print(json.dumps({"id": job.id, "applied": [a.step for a in applied],
-                              "kind": applied[0].WhichOneof("action"), "refused": refused,
+                              "kinds": [a.WhichOneof("action") for a in applied], "refused": refused,
                               "final": erg.service_pb2.JobState.Name(final.state),
                               "other": other}))
         """, spec=spec_json(name="py-long", **LONG),
             other=self.ergd.submit(spec_json(steps=2, snapshot_every=1), token=BOB).id)
-        self.assertEqual(len(out["applied"]), 1)
+        self.assertEqual(len(out["applied"]), 2)
         self.assertGreaterEqual(out["applied"][0], 5)
-        self.assertEqual(out["kind"], "sand")
+        self.assertGreaterEqual(out["applied"][1], out["applied"][0])
+        self.assertEqual(out["kinds"], ["sand", "bedrock"])
         self.assertEqual(out["refused"][0], "INVALID_ARGUMENT")
         self.assertIn("density", out["refused"][1])
         self.assertEqual(out["final"], "CANCELLED")
         self.assertEqual(out["other"], "NOT_FOUND")  # another tenant's job
         j = self.ergd.get(out["id"])
         self.assertEqual(j.state, S.CANCELLED)
-        self.assertEqual(len(j.spec.events), 1)  # the steering is recorded
-        self.assertEqual(j.spec.events[0].step, out["applied"][0])
+        # The steering is recorded, at the steps it was applied.
+        self.assertEqual([e.step for e in j.spec.events], out["applied"])
 
     def test_watch_rides_out_ergd_killed_and_restarted(self):
         job_id = self.ergd.submit(spec_json(name="py-survivor", nx=256, ny=256, steps=600,

@@ -56,7 +56,12 @@ def spec_of(spec):
 
 
 def events_of(events):
-    """A list of Events from one Event or dict, a list of them, or JSON text."""
+    """A list of Events from one Event or dict, a list of them, JSON text or
+    the path of a JSON file (what `erg steer ID EVENTS.json` reads)."""
+    if isinstance(events, os.PathLike) or (isinstance(events, str)
+                                           and events.lstrip()[:1] not in ("[", "{")):
+        with open(events, encoding="utf-8") as f:
+            events = f.read()
     if isinstance(events, str):
         events = json.loads(events)
     if isinstance(events, (dict, Message)):
@@ -205,8 +210,9 @@ class Client:
         return self._call("ResumeJob", service_pb2.ResumeJobRequest(id=job_id))
 
     def steer(self, job_id, events):
-        """Sends steering events (one erg.v1.Event or dict, a list, or JSON
-        text, as `erg steer`) to a RUNNING job; their `step` is ignored.
+        """Sends steering events (one erg.v1.Event or dict, a list, JSON
+        text or a JSON file, as `erg steer`) to a RUNNING job; their `step`
+        is ignored.
         Returns the events as applied, each with its step."""
         req = service_pb2.SteerJobRequest(id=job_id, events=events_of(events))
         return list(self._call("SteerJob", req).applied)
