@@ -119,6 +119,10 @@ class PythonPackage(ErgdTest):
                 corrupt = None
             except erg.Error as e:
                 corrupt = [e.code.name, e.details, os.path.exists(part)]
+            with open(part, "wb") as f:  # longer than ergd's file: downloaded afresh
+                f.write(data + b"x")
+            with open(c.fetch(job.id, os.path.dirname(part), step=40)[0], "rb") as f:
+                long_same = f.read() == data
             ds = erg.open_run(ARGS["out"])
             local = erg.open_run(ARGS["local"])
             print(json.dumps({
@@ -126,7 +130,7 @@ class PythonPackage(ErgdTest):
                 "state": erg.service_pb2.JobState.Name(st.state),
                 "snapshot_steps": list(st.snapshot_steps), "listed": listed, "done": done,
                 "running": running, "paths": paths, "again": again,
-                "resumed_same": resumed_same, "corrupt": corrupt,
+                "resumed_same": resumed_same, "corrupt": corrupt, "long_same": long_same,
                 "dims": list(ds.sand.dims), "sizes": dict(ds.sizes),
                 "x": ds.x.values.tolist(), "y": ds.y.values.tolist(),
                 "time": ds.time.values.tolist(), "units": ds.sand.attrs["units"],
@@ -158,6 +162,7 @@ class PythonPackage(ErgdTest):
         self.assertEqual(out["corrupt"][0], "DATA_LOSS")
         self.assertIn("sha256 differs", out["corrupt"][1])
         self.assertFalse(out["corrupt"][2])
+        self.assertTrue(out["long_same"])
         first, data = self.ergd.fetch_bytes(out["id"])
         with open(out["paths"][-1], "rb") as f:
             self.assertEqual(sha256(f.read()), first.sha256)
@@ -202,9 +207,9 @@ class PythonPackage(ErgdTest):
             except erg.Error as e:
                 other = e.code.name
             print(json.dumps({"id": job.id, "applied": [a.step for a in applied],
-                              "kinds": [a.WhichOneof("action") for a in applied], "refused": refused,
-                              "final": erg.service_pb2.JobState.Name(final.state),
-                              "other": other}))
+                              "kinds": [a.WhichOneof("action") for a in applied],
+                              "refused": refused, "other": other,
+                              "final": erg.service_pb2.JobState.Name(final.state)}))
         """, spec=spec_json(name="py-long", **LONG),
             other=self.ergd.submit(spec_json(steps=2, snapshot_every=1), token=BOB).id)
         self.assertEqual(len(out["applied"]), 2)

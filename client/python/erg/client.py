@@ -246,6 +246,7 @@ class Client:
         retry = _Retry()
         name = "step_%08d.h5" % step
         checked_existing = False
+        renamed = 0
         while True:
             final = os.path.join(out, name)
             part = final + ".part"
@@ -268,6 +269,10 @@ class Client:
                                 "refusing ergd's file name '%s'" % first.name)
                 if first.name != name:  # ergd names it otherwise: look for that .part
                     stream.cancel()
+                    renamed += 1
+                    if renamed > 2:
+                        raise Error("StreamSnapshot", grpc.StatusCode.DATA_LOSS,
+                                    "ergd keeps renaming step %d" % step)
                     name = first.name
                     continue
                 if check:
@@ -288,6 +293,9 @@ class Client:
                     os.fsync(f.fileno())
             except grpc.RpcError as e:
                 if _lost(e) and retry.wait():
+                    continue
+                if e.code() == grpc.StatusCode.OUT_OF_RANGE and offset > 0:
+                    os.remove(part)  # a .part longer than ergd's file is not its start
                     continue
                 raise Error("StreamSnapshot", e.code(), e.details()) from None
             if os.path.getsize(part) != first.size or _sha256_of(part) != first.sha256:
