@@ -18,14 +18,6 @@
 
 namespace erg {
 
-// The coarse grid of the wind-warping smoothing (stages/wind_warping.h).
-struct CoarseGrid {
-  int cx = 1, cy = 1;          // fine cells per coarse cell along x, y
-  int nx = 0, ny = 0;          // coarse cells
-  double lx_m = 0, ly_m = 0;   // domain extent
-  double sigma_m[2] = {0, 0};  // Gaussian sigma of the large and small scales
-};
-
 // How a step's avalanching iterations are grouped into rounds. A round of R
 // iterations starts from layers whose ghosts are filled 2R + 1 cells wide
 // and needs no exchange inside (ghost-zone expansion, docs/design.md

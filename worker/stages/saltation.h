@@ -172,4 +172,16 @@ ERG_HD Impact impact(units_t landed, units_t sand, float shadow, float v, float 
   return r;
 }
 
+// Applies an impact to the cell's layers and buffers; returns the bedrock
+// abraded (units), 0 when none.
+ERG_HD units_t settle(const Impact& im, units_t& sand, units_t& bedrock, units_t& airborne,
+                      float& reptation_m, units_t& deposited) {
+  sand += im.deposited + im.abraded;
+  bedrock -= im.abraded;
+  airborne = im.bounced;
+  reptation_m = im.reptation_m;
+  deposited = im.deposited;
+  return im.abraded;
+}
+
 }  // namespace erg::saltation

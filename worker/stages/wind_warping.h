@@ -18,8 +18,22 @@
 // tile sees the same smoothed field (docs/design.md, "Tiling").
 #pragma once
 
+#include <cstddef>
+
 #include "core/hd.h"
 #include "core/vec2.h"
+
+namespace erg {
+
+// The coarse grid of the wind-warping smoothing.
+struct CoarseGrid {
+  int cx = 1, cy = 1;          // fine cells per coarse cell along x, y
+  int nx = 0, ny = 0;          // coarse cells
+  double lx_m = 0, ly_m = 0;   // domain extent
+  double sigma_m[2] = {0, 0};  // Gaussian sigma of the large and small scales
+};
+
+}  // namespace erg
 
 namespace erg::wind_warping {
 
@@ -53,6 +67,46 @@ ERG_HD Vec2 warp(Vec2 v, Vec2 grad_large, Vec2 grad_small, const Params& p) {
 ERG_HD double gaussian_transfer(double kx, double ky, double sigma_m) {
   const double pi2 = 9.869604401089358;  // pi^2
   return exp(-2.0 * pi2 * sigma_m * sigma_m * (kx * kx + ky * ky));
+}
+
+// The spectral Gaussian gradients of the coarse heights, on the half
+// spectrum of a real 2-D transform ([ny][nx / 2 + 1], FFTW's and cuFFT's
+// layout): mode (i, j) at physical wave numbers, j past ny / 2 negative.
+struct WaveNumber {
+  double kx, ky;
+};
+ERG_HD WaveNumber wave_number(const CoarseGrid& c, int i, int j) {
+  const int mj = j <= c.ny / 2 ? j : j - c.ny;
+  return {i / c.lx_m, mj / c.ly_m};
+}
+// The Gaussian of scale s at every mode, times the 1 / n of the unnormalised
+// inverse transform: computed once per run.
+inline void gaussian_table(const CoarseGrid& c, int s, double* out) {
+  const int hx = c.nx / 2 + 1;
+  const double norm = 1.0 / static_cast<double>(static_cast<std::size_t>(c.nx) * c.ny);
+  for (int j = 0; j < c.ny; ++j)
+    for (int i = 0; i < hx; ++i) {
+      const WaveNumber k = wave_number(c, i, j);
+      out[static_cast<std::size_t>(j) * hx + i] =
+          gaussian_transfer(k.kx, k.ky, c.sigma_m[s]) * norm;
+    }
+}
+// Mode (i, j) of the spectrum (re, im) times its Gaussian g times the
+// derivative along `axis` (0: x): d/dx <-> 2 pi i k_x. The Nyquist mode of
+// the differentiated axis has no sign and is dropped.
+struct Mode {
+  double re, im;
+};
+ERG_HD Mode gradient_mode(const CoarseGrid& c, int i, int j, int axis, double re, double im,
+                          double g) {
+  const double two_pi = 6.283185307179586;
+  const WaveNumber k = wave_number(c, i, j);
+  const double factor = two_pi * (axis == 0 ? k.kx : k.ky);
+  const bool nyquist =
+      axis == 0 ? (c.nx % 2 == 0) && i == c.nx / 2 : (c.ny % 2 == 0) && j == c.ny / 2;
+  const double a = re * g, b = im * g;
+  // (a + i b) * (i factor) = -b factor + i a factor
+  return {nyquist ? 0.0 : -b * factor, nyquist ? 0.0 : a * factor};
 }
 
 // Bilinear interpolation of a periodic coarse field at fine cell centres.

@@ -34,6 +34,7 @@ class CoarseSmoother {
   fftw_complex* spectrum_ = nullptr;
   fftw_complex* work_ = nullptr;
   fftw_plan forward_{}, inverse_{};
+  std::vector<double> gauss_[2];  // wind_warping::gaussian_table of each scale
 };
 
 class CpuBackend final : public Backend {

@@ -14,10 +14,6 @@
 
 namespace erg::cpu {
 
-namespace {
-constexpr double kTwoPi = 6.283185307179586;
-}
-
 CoarseSmoother::CoarseSmoother(const CoarseGrid& c) : c_(c) {
   const size_t n = static_cast<size_t>(c.nx) * c.ny;
   const size_t nc = static_cast<size_t>(c.nx / 2 + 1) * c.ny;
@@ -27,6 +23,10 @@ CoarseSmoother::CoarseSmoother(const CoarseGrid& c) : c_(c) {
   // FFTW's planner is not thread-safe; plans are made once, here.
   forward_ = fftw_plan_dft_r2c_2d(c.ny, c.nx, real_, spectrum_, FFTW_ESTIMATE);
   inverse_ = fftw_plan_dft_c2r_2d(c.ny, c.nx, work_, real_, FFTW_ESTIMATE);
+  for (int s = 0; s < 2; ++s) {
+    gauss_[s].resize(nc);
+    wind_warping::gaussian_table(c, s, gauss_[s].data());
+  }
 }
 
 CoarseSmoother::~CoarseSmoother() {
@@ -43,33 +43,16 @@ void CoarseSmoother::gradients(const std::vector<double>& heights, std::vector<f
   const size_t n = static_cast<size_t>(nx) * ny;
   std::copy(heights.begin(), heights.end(), real_);
   fftw_execute(forward_);
-  const double norm = 1.0 / static_cast<double>(n);
   for (int s = 0; s < 2; ++s) {
     for (int axis = 0; axis < 2; ++axis) {
-      // d/dx <-> 2 pi i k_x at physical wave numbers (cycles per metre); the
-      // Nyquist mode of the differentiated axis has no sign and is dropped.
-      for (int j = 0; j < ny; ++j) {
-        const int mj = j <= ny / 2 ? j : j - ny;
-        const double ky = mj / c_.ly_m;
+      for (int j = 0; j < ny; ++j)
         for (int i = 0; i < hx; ++i) {
-          const double kx = i / c_.lx_m;
           const size_t k = static_cast<size_t>(j) * hx + i;
-          const double gauss = wind_warping::gaussian_transfer(kx, ky, c_.sigma_m[s]) * norm;
-          double factor;
-          bool nyquist;
-          if (axis == 0) {
-            factor = kTwoPi * kx;
-            nyquist = (nx % 2 == 0) && i == nx / 2;
-          } else {
-            factor = kTwoPi * ky;
-            nyquist = (ny % 2 == 0) && j == ny / 2;
-          }
-          const double a = spectrum_[k][0] * gauss, b = spectrum_[k][1] * gauss;
-          // (a + i b) * (i factor) = -b factor + i a factor
-          work_[k][0] = nyquist ? 0.0 : -b * factor;
-          work_[k][1] = nyquist ? 0.0 : a * factor;
+          const wind_warping::Mode m = wind_warping::gradient_mode(c_, i, j, axis, spectrum_[k][0],
+                                                                   spectrum_[k][1], gauss_[s][k]);
+          work_[k][0] = m.re;
+          work_[k][1] = m.im;
         }
-      }
       fftw_execute(inverse_);
       std::vector<float>& out = axis == 0 ? grad_x[s] : grad_y[s];
       out.resize(n);

@@ -277,16 +277,7 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
     grad_y_[s].reset(cn);
     gauss_[s].reset(nc);
     std::vector<double> gauss(nc);
-    const double norm = 1.0 / static_cast<double>(cn);
-    for (int j = 0; j < c.ny; ++j) {
-      const int mj = j <= c.ny / 2 ? j : j - c.ny;
-      const double ky = mj / c.ly_m;
-      for (int i = 0; i < hx; ++i) {
-        const double kx = i / c.lx_m;
-        gauss[static_cast<std::size_t>(j) * hx + i] =
-            wind_warping::gaussian_transfer(kx, ky, c.sigma_m[s]) * norm;
-      }
-    }
+    wind_warping::gaussian_table(c, s, gauss.data());
     ERG_CUDA_CHECK(
         cudaMemcpy(gauss_[s].get(), gauss.data(), nc * sizeof(double), cudaMemcpyHostToDevice));
   }

@@ -5,8 +5,9 @@
 // ghosts back onto their owners (the torus), (3) deposit, bounce, abrade and
 // record the reptation strength.
 #include "backend/cuda/cuda_backend.h"
+#include "backend/cuda/for_each.cuh"
 #include "core/philox.h"
-#include "stages/obstacles.h"
+#include "stages/hop_landing.h"
 #include "stages/saltation.h"
 
 namespace erg::gpu {
@@ -16,75 +17,6 @@ namespace {
 __device__ __forceinline__ void add_units(units_t* cell, units_t q) {
   // Two's-complement addition: the same bits as a signed add, in any order.
   atomicAdd(reinterpret_cast<unsigned long long*>(cell), static_cast<unsigned long long>(q));
-}
-
-// (1) Lift (last step's bounces are already in the airborne buffer).
-__global__ void lift_kernel(TileGeom g, saltation::Params p, std::uint64_t seed, std::uint64_t step,
-                            units_t* sand, units_t* airborne, const float* shadow,
-                            const float* vegetation, const float* wind_x, const float* wind_y,
-                            const float* echo) {
-  int x, y;
-  if (!owned_cell(g, x, y)) return;
-  const std::size_t i = g.at(x, y);
-  const float speed = length(Vec2{wind_x[i], wind_y[i]});
-  units_t q;
-  if (p.stochastic) {
-    const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLift).v[0]);
-    q = saltation::lift_stochastic(sand[i], shadow[i], vegetation[i], speed, u, p, echo[i]);
-  } else {
-    q = saltation::lift_expected(sand[i], shadow[i], vegetation[i], speed, p, echo[i]);
-  }
-  sand[i] -= q;
-  airborne[i] += q;
-}
-
-// (2) One hop downwind into `landed` (owned + ghosts).
-__global__ void scatter_kernel(TileGeom g, saltation::Params p, std::uint64_t seed,
-                               std::uint64_t step, units_t* airborne, const float* wind_x,
-                               const float* wind_y, const float* ob, bool any_obstacles,
-                               units_t* landed) {
-  int x, y;
-  if (!owned_cell(g, x, y)) return;
-  const std::size_t i = g.at(x, y);
-  const units_t a = airborne[i];
-  if (a == 0) return;
-  airborne[i] = 0;
-  const saltation::Landing L = saltation::landing(x, y, {wind_x[i], wind_y[i]}, p);
-  if (any_obstacles) {
-    // Hops never land in an obstacle [BR04 4.1] (stages/obstacles.h), as on the CPU.
-    const float* o_base = ob + g.at(0, 0);
-    const obstacles::Path path =
-        obstacles::hop_path(o_base, g.pitch, x, y, static_cast<float>(L.x0 - x) + L.fx,
-                            static_cast<float>(L.y0 - y) + L.fy);
-    if (p.stochastic) {
-      const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLanding).v[0]);
-      const int k = saltation::pick_corner(L.fx, L.fy, u);
-      const obstacles::Cell c =
-          obstacles::receiver(o_base, g.pitch, L.x0 + (k & 1), L.y0 + (k >> 1), path);
-      add_units(landed + g.at(c.x, c.y), a);
-    } else {
-      units_t q[4];
-      saltation::split_bilinear(a, L.fx, L.fy, q);
-      for (int k = 0; k < 4; ++k) {
-        const obstacles::Cell c =
-            obstacles::receiver(o_base, g.pitch, L.x0 + (k & 1), L.y0 + (k >> 1), path);
-        add_units(landed + g.at(c.x, c.y), q[k]);
-      }
-    }
-    return;
-  }
-  if (p.stochastic) {
-    const float u = u01(random4(seed, step, g.global_index(x, y), RandomStream::kLanding).v[0]);
-    const int k = saltation::pick_corner(L.fx, L.fy, u);
-    add_units(landed + g.at(L.x0 + (k & 1), L.y0 + (k >> 1)), a);
-  } else {
-    units_t q[4];
-    saltation::split_bilinear(a, L.fx, L.fy, q);
-    add_units(landed + g.at(L.x0, L.y0), q[0]);
-    add_units(landed + g.at(L.x0 + 1, L.y0), q[1]);
-    add_units(landed + g.at(L.x0, L.y0 + 1), q[2]);
-    add_units(landed + g.at(L.x0 + 1, L.y0 + 1), q[3]);
-  }
 }
 
 // (3) Deposit, bounce, abrade; record the reptation strength.
@@ -104,12 +36,8 @@ __global__ void impact_kernel(TileGeom g, saltation::Params p, std::uint64_t see
   const saltation::Impact im =
       saltation::impact(in, sand[i], shadow[i], vegetation[i], resistance[i],
                         length(Vec2{wind_x[i], wind_y[i]}), u, p, echo[i]);
-  sand[i] += im.deposited + im.abraded;
-  bedrock[i] -= im.abraded;
-  airborne[i] = im.bounced;
-  reptation[i] = im.reptation_m;
-  deposited[i] = im.deposited;
-  if (im.abraded != 0) *abraded = 1;  // every writer writes 1: a harmless race
+  if (saltation::settle(im, sand[i], bedrock[i], airborne[i], reptation[i], deposited[i]) != 0)
+    *abraded = 1;  // every writer writes 1: a harmless race
 }
 
 }  // namespace
@@ -118,14 +46,48 @@ void CudaBackend::saltation_hop(std::int64_t step) {
   const saltation::Params p = m_.saltation;
   const std::uint64_t seed = m_.seed;
   const auto ustep = static_cast<std::uint64_t>(step);
-  const Launch l = owned_cells(g_);
 
-  ERG_LAUNCH(lift_kernel, l.grid, l.block, g_, p, seed, ustep, d_.sand.get(), d_.airborne.get(),
-             d_.shadow.get(), d_.vegetation.get(), d_.wind_x.get(), d_.wind_y.get(), d_.echo.get());
+  const TileGeom g = g_;
+  units_t* airborne = d_.airborne.get();
+  const float* wind_x = d_.wind_x.get();
+  const float* wind_y = d_.wind_y.get();
 
+  // (1) Lift (last step's bounces are already in the airborne buffer).
+  units_t* sand = d_.sand.get();
+  const float* shadow = d_.shadow.get();
+  const float* vegetation = d_.vegetation.get();
+  const float* echo = d_.echo.get();
+  for_each_cell(g, "saltation lift", [=] __device__(int x, int y, std::size_t i) {
+    const float speed = length(Vec2{wind_x[i], wind_y[i]});
+    units_t q;
+    if (p.stochastic) {
+      const float u = u01(random4(seed, ustep, g.global_index(x, y), RandomStream::kLift).v[0]);
+      q = saltation::lift_stochastic(sand[i], shadow[i], vegetation[i], speed, u, p, echo[i]);
+    } else {
+      q = saltation::lift_expected(sand[i], shadow[i], vegetation[i], speed, p, echo[i]);
+    }
+    sand[i] -= q;
+    airborne[i] += q;
+  });
+
+  // (2) One hop downwind into `landed` (owned + ghosts), 64-bit integer
+  // atomics: exact in any order. Hops never land in an obstacle [BR04 4.1].
   ERG_CUDA_CHECK(cudaMemsetAsync(d_.landed.get(), 0, d_.landed.bytes()));
-  ERG_LAUNCH(scatter_kernel, l.grid, l.block, g_, p, seed, ustep, d_.airborne.get(),
-             d_.wind_x.get(), d_.wind_y.get(), d_.obstacles.get(), any_obstacles_, d_.landed.get());
+  const bool obstacles = any_obstacles_;
+  units_t* landed = d_.landed.get() + g.at(0, 0);
+  const float* o_base = d_.obstacles.get() + g.at(0, 0);
+  for_each_cell(g, "saltation scatter", [=] __device__(int x, int y, std::size_t i) {
+    const units_t a = airborne[i];
+    if (a == 0) return;
+    airborne[i] = 0;
+    const saltation::Landing L = saltation::landing(x, y, {wind_x[i], wind_y[i]}, p);
+    const float u =
+        p.stochastic ? saltation::landing_draw(seed, ustep, g.global_index(x, y)) : 0.0f;
+    saltation::land_hop(a, x, y, L, u, p, obstacles, o_base, g.pitch,
+                        [&](int cx, int cy, units_t q) {
+                          add_units(landed + static_cast<long>(cy) * g.pitch + cx, q);
+                        });
+  });
 }
 
 // After the landed ghosts are summed into their owners (Simulation::step):

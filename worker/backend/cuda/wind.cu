@@ -15,7 +15,6 @@ namespace erg::gpu {
 
 namespace {
 
-constexpr double kTwoPi = 6.283185307179586;
 constexpr int kCoarseThreads = kRowThreads;  // block_sum needs kRowThreads
 
 __global__ void heights_kernel(TileGeom g, const units_t* bedrock, const units_t* sand,
@@ -58,23 +57,10 @@ __global__ void spectral_gradient_kernel(CoarseGrid c, const cufftDoubleComplex*
   const std::size_t k = flat_index();
   if (k >= static_cast<std::size_t>(hx) * c.ny) return;
   const int j = static_cast<int>(k / hx), i = static_cast<int>(k % hx);
-  const int mj = j <= c.ny / 2 ? j : j - c.ny;
-  const double ky = mj / c.ly_m;
-  const double kx = i / c.lx_m;
-  const double g = gauss[k];
-  double factor;
-  bool nyquist;
-  if (axis == 0) {
-    factor = kTwoPi * kx;
-    nyquist = (c.nx % 2 == 0) && i == c.nx / 2;
-  } else {
-    factor = kTwoPi * ky;
-    nyquist = (c.ny % 2 == 0) && j == c.ny / 2;
-  }
-  const double a = spectrum[k].x * g, b = spectrum[k].y * g;
-  // (a + i b) * (i factor) = -b factor + i a factor
-  work[k].x = nyquist ? 0.0 : -b * factor;
-  work[k].y = nyquist ? 0.0 : a * factor;
+  const wind_warping::Mode m =
+      wind_warping::gradient_mode(c, i, j, axis, spectrum[k].x, spectrum[k].y, gauss[k]);
+  work[k].x = m.re;
+  work[k].y = m.im;
 }
 
 __global__ void to_float_kernel(const double* in, float* out, std::size_t n) {

@@ -1,0 +1,209 @@
+// SPDX-License-Identifier: Apache-2.0
+// The CPU backend's fast paths give the same bits as the plain per-cell
+// stages/ bodies the GPU runs, on random inputs: the step-major shadow march
+// and the bound that skips whole segments (backend/cpu/shadow_march.h,
+// stages/wind_shadow.h), and the vectorised expected-mode scatter of
+// saltation (backend/cpu/saltation_rows.h, stages/hop_landing.h).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include "backend/cpu/saltation_rows.h"
+#include "backend/cpu/shadow_march.h"
+#include "core/grid.h"
+#include "stages/wind_shadow.h"
+
+namespace erg {
+namespace {
+
+TileGeom tile(int nx, int ny, int halo) {
+  TileGeom g;
+  g.nx = nx;
+  g.ny = ny;
+  g.halo = halo;
+  g.pitch = nx + 2 * halo + 3;  // padded, as the backends' fields
+  g.x0 = 17;
+  g.y0 = 5;
+  g.gnx = 4 * nx;
+  g.gny = 3 * ny;
+  g.cell_m = 2.0f;
+  return g;
+}
+
+// Bit patterns, so that -0.0f and 0.0f (and NaN) are told apart.
+std::uint32_t bits(float f) {
+  std::uint32_t u;
+  std::memcpy(&u, &f, sizeof u);
+  return u;
+}
+
+wind_shadow::Params shadow_params(int steps) {
+  wind_shadow::Params p{};
+  p.steps = steps;
+  p.cell_m = 2.0f;
+  p.tan_min = 0.176f;  // 10 degrees
+  p.tan_max = 0.268f;  // 15 degrees
+  wind_shadow::finish(p);
+  return p;
+}
+
+TEST(CpuFastPaths, StepMajorShadowMarchEqualsPerCellShadow) {
+  std::mt19937 rng(12345);
+  for (const int steps : {0, 1, 7, 20}) {
+    const TileGeom g = tile(150, 23, steps + 2);  // 150: a short last segment
+    const wind_shadow::Params p = shadow_params(steps);
+    std::uniform_real_distribution<float> height(0.0f, 6.0f), wind(-3.0f, 3.0f);
+    std::vector<float> h(g.size()), wx(g.size()), wy(g.size());
+    for (float& v : h) v = height(rng);
+    for (size_t i = 0; i < g.size(); ++i) {
+      wx[i] = wind(rng);
+      wy[i] = wind(rng);
+      if (i % 37 == 0) wx[i] = wy[i] = 0.0f;  // calm cells
+      if (i % 41 == 0) wy[i] = 0.0f;          // along an axis
+    }
+    const float* base = h.data() + g.at(0, 0);
+    int marched = 0;
+    for (int y = 0; y < g.ny; ++y) {
+      std::vector<float> fast(static_cast<size_t>(g.nx), -7.0f);
+      for (int x0 = 0; x0 < g.nx; x0 += cpu::kSegment)
+        cpu::march_segment(base, g.pitch, wx.data() + g.at(0, y), wy.data() + g.at(0, y), x0,
+                           std::min(x0 + cpu::kSegment, g.nx), y, p, fast.data());
+      for (int x = 0; x < g.nx; ++x) {
+        const size_t i = g.at(x, y);
+        const float plain = wind_shadow::shadow(base, g.pitch, x, y, {wx[i], wy[i]}, p);
+        ASSERT_EQ(bits(fast[static_cast<size_t>(x)]), bits(plain))
+            << "steps " << steps << " cell " << x << "," << y;
+        marched += plain > 0.0f;
+      }
+    }
+    if (steps > 0) {
+      EXPECT_GT(marched, 0);  // the inputs do cast shadows
+    }
+  }
+}
+
+// The segment skipping: a cell the height bound settles is one the plain
+// path gives exactly 0, on rough terrain whose bound barely settles it.
+TEST(CpuFastPaths, ShadowBoundSkipsOnlyUnshadowedCells) {
+  std::mt19937 rng(777);
+  const int steps = 12;
+  const TileGeom g = tile(96, 40, steps + 2);
+  const wind_shadow::Params p = shadow_params(steps);
+  std::uniform_real_distribution<float> height(0.0f, 1.0f), wind(-2.0f, 2.0f);
+  std::vector<float> h(g.size()), wx(g.size()), wy(g.size());
+  for (size_t i = 0; i < g.size(); ++i) {
+    h[i] = 100.0f + 0.05f * height(rng);
+    wx[i] = wind(rng);
+    wy[i] = wind(rng);
+  }
+  const float hmax = *std::max_element(h.begin(), h.end());
+  const float* base = h.data() + g.at(0, 0);
+  int settled = 0;
+  for (int y = 0; y < g.ny; ++y)
+    for (int x = 0; x < g.nx; ++x) {
+      const size_t i = g.at(x, y);
+      if (!wind_shadow::certainly_unshadowed(hmax, h[i], p)) continue;
+      ++settled;
+      ASSERT_EQ(bits(wind_shadow::shadow(base, g.pitch, x, y, {wx[i], wy[i]}, p)), bits(0.0f));
+    }
+  EXPECT_GT(settled, g.nx * g.ny / 2);
+}
+
+saltation::Params saltation_params(bool stochastic) {
+  saltation::Params p{};
+  p.slab_units = 1000.0f;
+  p.hop_time_s = 1.3f;
+  p.max_hop_m = 9.0f;
+  p.cell_m = 2.0f;
+  p.deposit_on_sand = 0.6f;
+  p.deposit_on_bedrock = 0.4f;
+  p.stochastic = stochastic;
+  return p;
+}
+
+struct Airborne {
+  TileGeom g;
+  std::vector<units_t> air;
+  std::vector<float> wx, wy, obstacles;
+};
+Airborne random_airborne(std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  Airborne a{tile(70, 19, 6), {}, {}, {}, {}};
+  const std::size_t n = a.g.size();
+  a.air.assign(n, 0);
+  a.wx.assign(n, 0.0f);
+  a.wy.assign(n, 0.0f);
+  a.obstacles.assign(n, 0.0f);
+  std::uniform_real_distribution<float> wind(-5.0f, 5.0f);
+  std::uniform_int_distribution<units_t> amount(0, 1'000'000'007);
+  for (std::size_t i = 0; i < n; ++i) {
+    a.air[i] = i % 5 == 0 ? 0 : amount(rng);
+    a.wx[i] = i % 23 == 0 ? 0.0f : wind(rng);
+    a.wy[i] = wind(rng);
+  }
+  return a;
+}
+
+// Every row scattered by the plain path (land_hop per cell), with the
+// obstacle walk on or off.
+std::vector<units_t> scatter_plain(Airborne a, const saltation::Params& p, bool obstacles) {
+  std::vector<units_t> landed(a.g.size(), 0);
+  for (int y = 0; y < a.g.ny; ++y)
+    cpu::scatter_row(a.air.data() + a.g.at(0, y), a.wx.data() + a.g.at(0, y),
+                     a.wy.data() + a.g.at(0, y), a.g, y, 99, 42, p, obstacles,
+                     a.obstacles.data() + a.g.at(0, 0), landed.data());
+  return landed;
+}
+
+TEST(CpuFastPaths, VectorisedExpectedScatterEqualsPlainLanding) {
+  Airborne a = random_airborne(2024);
+  const saltation::Params p = saltation_params(false);
+  const std::vector<units_t> plain = scatter_plain(a, p, false);
+  std::vector<units_t> fast(a.g.size(), 0);
+  std::vector<long> target(static_cast<size_t>(a.g.nx));
+  std::vector<units_t> parts(4 * static_cast<size_t>(a.g.nx));
+  units_t owned_total = 0;  // what is in flight (scatter_plain took a copy)
+  for (int y = 0; y < a.g.ny; ++y)
+    for (int x = 0; x < a.g.nx; ++x) owned_total += a.air[a.g.at(x, y)];
+  for (int y = 0; y < a.g.ny; ++y) {
+    cpu::split_row(a.air.data() + a.g.at(0, y), a.wx.data() + a.g.at(0, y),
+                   a.wy.data() + a.g.at(0, y), a.g.nx, y, static_cast<long>(a.g.at(0, 0)),
+                   a.g.pitch, p, target.data(), parts.data());
+    cpu::add_splits(target.data(), parts.data(), a.g.nx, a.g.pitch, fast.data());
+  }
+  EXPECT_EQ(fast, plain);
+  units_t landed_total = 0;
+  for (units_t v : plain) landed_total += v;
+  EXPECT_EQ(landed_total, owned_total);  // every owned unit lands somewhere
+  EXPECT_GT(owned_total, 0);
+}
+
+// Without an obstacle in reach the obstacle walk lands every unit where the
+// plain hop does (so the CPU may skip it), in both modes; with obstacles it
+// moves sand and still conserves it.
+TEST(CpuFastPaths, ObstacleWalkWithoutObstaclesEqualsPlainHop) {
+  for (const bool stochastic : {false, true}) {
+    Airborne a = random_airborne(stochastic ? 5u : 6u);
+    const saltation::Params p = saltation_params(stochastic);
+    EXPECT_EQ(scatter_plain(a, p, true), scatter_plain(a, p, false)) << stochastic;
+    for (int y = 3; y < 9; ++y)
+      for (int x = 10; x < 30; ++x) {
+        a.obstacles[a.g.at(x, y)] = 2.5f;
+        a.air[a.g.at(x, y)] = 0;  // obstacles hold no sand
+      }
+    const std::vector<units_t> blocked = scatter_plain(a, p, true);
+    EXPECT_NE(blocked, scatter_plain(a, p, false));
+    units_t sum_blocked = 0, sum_free = 0;
+    for (units_t v : blocked) sum_blocked += v;
+    for (units_t v : scatter_plain(a, p, false)) sum_free += v;
+    EXPECT_EQ(sum_blocked, sum_free);
+    for (int y = 3; y < 9; ++y)
+      for (int x = 10; x < 30; ++x) EXPECT_EQ(blocked[a.g.at(x, y)], 0) << x << "," << y;
+  }
+}
+
+}  // namespace
+}  // namespace erg
