@@ -1,7 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 // erg fetch ID [--step S | --all] --out DIR
 // erg preview ID [--step S] --out FILE.png
-// Snapshots come over StreamSnapshot into DIR/NAME.part (remote/download.h):
+// DIR becomes a run directory like erg run's (io/run_files.h): DIR/job.json
+// (the job's recorded spec), DIR/snapshots/NAME with its .xdmf sidecar and
+// DIR/run.xdmf, written by the worker's own XDMF code (io/io.h) from the
+// fetched files, so erg export, erg amplify and ParaView take it as a local run.
+// Snapshots come over StreamSnapshot into DIR/snapshots/NAME.part (remote/download.h):
 // resumed from the .part's size after an interruption (a lost connection is
 // retried here; a killed erg resumes on its next run), checked against the
 // sha256 of the first message, renamed to DIR/NAME when whole. The fetched
@@ -15,6 +19,8 @@
 
 #include "commands.h"
 #include "io/atomic_file.h"
+#include "io/io.h"
+#include "job/spec.h"
 #include "progress_bar.h"
 #include "remote/args.h"
 #include "remote/common.h"
@@ -73,6 +79,9 @@ class StepFetch {
         // The .part to resume is looked for under ergd's usual name; when
         // ergd names the file otherwise, the stream is opened again with that name.
         name_(snapshot_file_name(step)) {}
+
+  // The file's path once run() has succeeded.
+  std::string path() const { return (fs::path(dir_) / name_).string(); }
 
   int run() {
     for (;;) {
@@ -256,9 +265,21 @@ class StepFetch {
   RetryBudget retry_;
 };
 
+// Fetches one snapshot into DIR/snapshots and writes its sidecar and
+// DIR/run.xdmf again (so an interrupted --all leaves a collection of the
+// snapshots that are whole).
 int fetch_step(Remote& remote, const std::string& id, std::int64_t step, const std::string& dir,
                bool connected) {
-  return StepFetch(remote, id, step, dir, connected).run();
+  StepFetch f(remote, id, step, (fs::path(dir) / "snapshots").string(), connected);
+  if (const int code = f.run(); code != kExitOk) return code;
+  try {
+    io::write_xdmf_for(f.path());
+    io::write_run_xdmf(dir);
+  } catch (const std::exception& e) {
+    std::cerr << "erg: fetch: " << e.what() << "\n";
+    return kExitError;
+  }
+  return kExitOk;
 }
 
 }  // namespace
@@ -281,15 +302,15 @@ int cmd_fetch(Remote& remote, const std::vector<std::string>& args) {
   } catch (const std::invalid_argument& e) {
     return usage_error("fetch", e.what());
   }
+  // The job's record: its spec for DIR/job.json, and the snapshots to name
+  // (so a resumed download asks for the same file).
+  erg::v1::Job job;
+  int code = 0;
+  if (!get_job(remote, "fetch", id, &job, &code)) return code;
   std::vector<std::int64_t> steps;
   if (step >= 0) {
     steps.push_back(step);
   } else {
-    // The latest snapshot, or all of them: named by the job's record so a
-    // resumed download asks for the same file.
-    erg::v1::Job job;
-    int code = 0;
-    if (!get_job(remote, "fetch", id, &job, &code)) return code;
     if (job.snapshot_steps_size() == 0) {
       std::cerr << "erg: fetch: job " << id << " has no snapshot yet (" << state_name(job.state())
                 << ")\n";
@@ -301,15 +322,20 @@ int cmd_fetch(Remote& remote, const std::vector<std::string>& args) {
       steps.push_back(job.snapshot_steps(job.snapshot_steps_size() - 1));
   }
   std::error_code ec;
-  fs::create_directories(dir, ec);
+  fs::create_directories(fs::path(dir) / "snapshots", ec);
   if (ec) {
     std::cerr << "erg: fetch: cannot create " << dir << ": " << ec.message() << "\n";
     return kExitError;
   }
-  // With --step alone ergd has not answered yet.
-  const bool connected = step < 0;
+  try {
+    io::write_file_atomic((fs::path(dir) / "job.json").string(), job::to_json(job.spec()));
+  } catch (const std::exception& e) {
+    std::cerr << "erg: fetch: cannot write " << e.what() << "\n";
+    return kExitError;
+  }
+  // ergd has answered (GetJob): a broken stream is retried.
   for (const auto s : steps)
-    if (const int code = fetch_step(remote, id, s, dir, connected); code != kExitOk) return code;
+    if (const int rc = fetch_step(remote, id, s, dir, true); rc != kExitOk) return rc;
   return kExitOk;
 }
 

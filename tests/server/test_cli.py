@@ -20,12 +20,15 @@ import tempfile
 import time
 import unittest
 
-from ergd_fixture import (ALICE, BOB, CAROL, ERG, ErgdTest, S, erg_run, free_port, md, sha256,
-                          spec_json, terminal)
+from ergd_fixture import (ALICE, BOB, CAROL, ERG, ErgdTest, J, S, erg_run, free_port, json_format,
+                          md, sha256, spec_json, terminal)
 
 # Long enough to be caught running on this 2-core machine (threads=1).
 LONG = dict(nx=128, ny=128, steps=3000, snapshot_every=500, checkpoint_every=100)
 ID_RE = r"^j-[0-9a-f]{16}$"
+# ParaView's view of an XDMF file (tests/formats), for the fetched run.
+PV_INSPECT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "formats",
+                          "pv_inspect.py")
 
 
 def running_past(step):
@@ -53,7 +56,7 @@ def fetch_stopped_mid_download(env, job_id, step, out_dir, name):
     p = subprocess.Popen([ERG, "fetch", job_id, "--step", str(step), "--out", out_dir], env=env,
                          stdout=subprocess.PIPE, stderr=w, text=True)
     os.close(w)
-    part = os.path.join(out_dir, name + ".part")
+    part = os.path.join(out_dir, "snapshots", name + ".part")
     t0 = time.time()
     while not (os.path.exists(part) and os.path.getsize(part) > 0):
         if p.poll() is not None or time.time() - t0 > 30:
@@ -149,6 +152,10 @@ class Cli(CliTest):
     def fetch_dir(self):
         return os.path.join(self.tmp, "fetched")
 
+    def fetched(self, name=""):
+        """DIR/snapshots/NAME of the fetched run directory."""
+        return os.path.join(self.fetch_dir(), "snapshots", name)
+
     # -- submit, watch, fetch, compare ---------------------------------------------
     def test_submit_watch_fetch_equals_erg_run(self):
         code, out, err = self.erg("submit", self.job_file(self.FILE), "--watch", "--steps", "40",
@@ -167,22 +174,27 @@ class Cli(CliTest):
         # The latest snapshot.
         code, out, err = self.erg("fetch", job_id, "--out", self.fetch_dir())
         self.assertEqual(code, 0, err)
-        latest = os.path.join(self.fetch_dir(), "step_00000040.h5")
+        latest = self.fetched("step_00000040.h5")
         self.assertEqual(out, latest + "\n")
-        self.assertEqual(os.listdir(self.fetch_dir()), ["step_00000040.h5"])  # no .part left
+        # A run directory like erg run's; no .part left.
+        self.assertEqual(sorted(os.listdir(self.fetch_dir())),
+                         ["job.json", "run.xdmf", "snapshots"])
+        self.assertEqual(sorted(os.listdir(self.fetched())),
+                         ["step_00000040.h5", "step_00000040.xdmf"])
         self.assertSameSnapshot(latest, os.path.join(self.reference(), "step_00000040.h5"))
         # All of them: the one already here is verified, not fetched again.
         code, out, err = self.erg("fetch", job_id, "--all", "--out", self.fetch_dir())
         self.assertEqual(code, 0, err)
         names = ["step_%08d.h5" % s for s in range(0, 41, 10)]
-        self.assertEqual(out.splitlines(), [os.path.join(self.fetch_dir(), n) for n in names])
+        self.assertEqual(out.splitlines(), [self.fetched(n) for n in names])
         self.assertEqual(err.count("already present and verified"), 1, err)
-        self.assertEqual(sorted(os.listdir(self.fetch_dir())), names)
+        self.assertEqual(sorted(os.listdir(self.fetched())),
+                         sorted(names + [n[:-3] + ".xdmf" for n in names]))
         for n in names:
-            self.assertSameSnapshot(os.path.join(self.fetch_dir(), n),
-                                    os.path.join(self.reference(), n))
+            self.assertSameSnapshot(self.fetched(n), os.path.join(self.reference(), n))
+        self.check_fetched_run_directory(job_id, names)
         # Again, with one file changed here: only that one comes again.
-        with open(os.path.join(self.fetch_dir(), "step_00000030.h5"), "r+b") as f:
+        with open(self.fetched("step_00000030.h5"), "r+b") as f:
             f.write(b"XX")
         code, out, err = self.erg("fetch", job_id, "--all", "--out", self.fetch_dir())
         self.assertEqual(code, 0, err)
@@ -190,7 +202,7 @@ class Cli(CliTest):
         self.assertEqual(err.count("already present and verified"), 4, err)
         self.assertIn("step_00000030.h5 differs from ergd's snapshot", err)
         _, data = self.ergd.fetch_bytes(job_id, step=30)
-        with open(os.path.join(self.fetch_dir(), "step_00000030.h5"), "rb") as f:
+        with open(self.fetched("step_00000030.h5"), "rb") as f:
             self.assertEqual(sha256(f.read()), sha256(data))
         # The preview of the latest snapshot.
         png = os.path.join(self.tmp, "p.png")
@@ -204,6 +216,29 @@ class Cli(CliTest):
         self.assertIn("preview of step 10", err)
         code, _, err = self.erg("preview", job_id, "--step", "7", "--out", png)
         self.assertEqual(code, 5, err)
+
+    def check_fetched_run_directory(self, job_id, names):
+        """The fetched DIR is taken as a local run: job.json is the job's
+        recorded spec, erg export reads it, and ParaView opens DIR/run.xdmf
+        with one time step per snapshot."""
+        with open(os.path.join(self.fetch_dir(), "job.json")) as f:
+            spec = json_format.Parse(f.read(), J.JobSpec())
+        self.assertEqual(spec, self.ergd.get(job_id).spec)
+        tif = os.path.join(self.tmp, "fetched.tif")
+        code, _, err = self.erg("export", self.fetch_dir(), "--format", "geotiff", "--out", tif)
+        self.assertEqual(code, 0, err)
+        info = json.loads(subprocess.run(["gdalinfo", "-json", tif], capture_output=True,
+                                         text=True, check=True).stdout)
+        self.assertEqual(info["size"], [64, 64])
+        p = subprocess.run(["xvfb-run", "-a", "pvbatch", PV_INSPECT,
+                            os.path.join(self.fetch_dir(), "run.xdmf")],
+                           capture_output=True, text=True, timeout=300)
+        lines = [ln for ln in p.stdout.splitlines() if ln.startswith("ERG_PV ")]
+        self.assertTrue(p.returncode == 0 and lines, p.stdout + p.stderr)
+        seen = json.loads(lines[-1][len("ERG_PV "):])
+        self.assertEqual(len(seen["times"]), len(names), seen["times"])
+        self.assertEqual(len(seen["steps"]), len(names))
+        self.assertEqual(seen["steps"][-1]["dimensions"], [64, 64, 1])
 
     def test_overrides_and_resources_reach_ergd_and_two_ranks_match(self):
         code, out, err = self.erg("submit", self.job_file(self.FILE), "--steps", "40",
@@ -425,7 +460,8 @@ class Cli(CliTest):
     def test_fetch_resumes_after_erg_is_killed_mid_download(self):
         job_id, first, data = self.big_job()
         out_dir = self.fetch_dir()
-        part = os.path.join(out_dir, first.name + ".part")
+        snaps = os.path.join(out_dir, "snapshots")
+        part = os.path.join(snaps, first.name + ".part")
         p, r = fetch_stopped_mid_download(self.env, job_id, 1, out_dir, first.name)
         self.assertIsNone(p.poll())
         p.send_signal(signal.SIGKILL)  # no handler, no cleanup
@@ -434,7 +470,7 @@ class Cli(CliTest):
         os.close(r)
         held = os.path.getsize(part)
         self.assertTrue(0 < held < len(data), held)
-        self.assertFalse(os.path.exists(os.path.join(out_dir, first.name)))
+        self.assertFalse(os.path.exists(os.path.join(snaps, first.name)))
         with open(part, "rb") as f:
             self.assertEqual(f.read(), data[:held])
         with open(part + ".sha256") as f:
@@ -443,17 +479,19 @@ class Cli(CliTest):
         code, out, err = self.erg("fetch", job_id, "--step", "1", "--out", out_dir)
         self.assertEqual(code, 0, err)
         self.assertIn("erg: resuming %s at byte %d" % (first.name, held), err)
-        final = os.path.join(out_dir, first.name)
+        final = os.path.join(snaps, first.name)
         self.assertEqual(out, final + "\n")
         with open(final, "rb") as f:
             self.assertEqual(sha256(f.read()), first.sha256)
-        self.assertEqual(os.listdir(out_dir), [first.name])  # .part and .sha256 gone
+        self.assertEqual(sorted(os.listdir(snaps)),  # .part and .sha256 gone
+                         [first.name, first.name[:-3] + ".xdmf"])
 
     def test_fetch_resumes_a_part_and_refuses_a_corrupt_one(self):
         job_id, first, data = self.big_job()
         out_dir = self.fetch_dir()
-        os.makedirs(out_dir)
-        part = os.path.join(out_dir, first.name + ".part")
+        snaps = os.path.join(out_dir, "snapshots")
+        os.makedirs(snaps)
+        part = os.path.join(snaps, first.name + ".part")
         # A .part with no sidecar (an older erg's, or copied by hand).
         with open(part, "wb") as f:
             f.write(data[:300001])
@@ -474,7 +512,7 @@ class Cli(CliTest):
         self.assertEqual((code, out), (1, ""), err)
         self.assertIn("erg: resuming %s at byte 700000" % first.name, err)
         self.assertIn("sha256 mismatch for %s" % first.name, err)
-        self.assertEqual(os.listdir(out_dir), [])
+        self.assertEqual(os.listdir(snaps), [first.name[:-3] + ".xdmf"])
         # And then a clean download.
         code, out, err = self.erg("fetch", job_id, "--step", "1", "--out", out_dir)
         self.assertEqual(code, 0, err)
@@ -488,7 +526,7 @@ class Cli(CliTest):
         self.assertIn("erg: resuming %s at byte %d" % (first.name, len(data)), err)
         with open(out.strip(), "rb") as f:
             self.assertEqual(f.read(), data)
-        self.assertEqual(os.listdir(out_dir), [first.name])
+        self.assertEqual(sorted(os.listdir(snaps)), [first.name, first.name[:-3] + ".xdmf"])
         # A .part of another file (its recorded sha256 differs): thrown away.
         os.remove(out.strip())
         with open(part, "wb") as f:
@@ -508,7 +546,7 @@ class Cli(CliTest):
         self.assertTrue(err.startswith("erg: fetch: NOT_FOUND: "), err)
         self.assertIn("no snapshot at step 7", err)
         self.assertEqual(len(err.splitlines()), 1, err)
-        self.assertFalse(os.path.exists(os.path.join(self.fetch_dir(), "step_00000007.h5.part")))
+        self.assertFalse(os.path.exists(self.fetched("step_00000007.h5.part")))
         code, _, err = self.erg("fetch", job_id, "--step", "7", "--all", "--out", "x")
         self.assertEqual(code, 2)
         self.assertIn("--step and --all exclude each other", err)
@@ -724,11 +762,12 @@ class Restart(CliTest):
         m = re.search(r"erg: resuming %s at byte (\d+)\n" % first.name, err)
         self.assertTrue(m, err)
         self.assertTrue(0 < int(m.group(1)) < len(data), m.group(0))
-        final = os.path.join(out_dir, first.name)
+        final = os.path.join(out_dir, "snapshots", first.name)
         self.assertEqual(out, final + "\n")
         with open(final, "rb") as f:
             self.assertEqual(f.read(), data)
-        self.assertEqual(os.listdir(out_dir), [first.name])
+        self.assertEqual(sorted(os.listdir(os.path.dirname(final))),
+                         [first.name, first.name[:-3] + ".xdmf"])
 
 
 if __name__ == "__main__":

@@ -78,7 +78,7 @@ class Slurm(ErgdTest):
         out = os.path.join(self.tmpdir, "fetched")
         self.erg("fetch", job_id, "--out", out)
         ref = erg_run(d, os.path.join(self.tmpdir, "ref-two"), self.tmpdir)
-        self.assertSameSnapshot(os.path.join(out, "step_00000060.h5"),
+        self.assertSameSnapshot(os.path.join(out, "snapshots", "step_00000060.h5"),
                                 os.path.join(ref, "snapshots", "step_00000060.h5"))
 
     def test_2_cancel(self):
