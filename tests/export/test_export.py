@@ -112,6 +112,12 @@ class ExportTest(unittest.TestCase):
         self.assertEqual(md["ERG_STEP"], "20")
         self.assertEqual(md["ERG_LAYER"], "height")
         self.assertEqual(json.loads(md["ERG_JOB_SPEC"]), json.loads(self.snap["spec"]))
+        self.assertNotIn("\n", md["ERG_JOB_SPEC"])  # one line
+        # Plain gdalinfo stays readable: the spec does not fill the screen.
+        text = subprocess.run(["gdalinfo", path], capture_output=True, text=True,
+                              check=True).stdout
+        self.assertLess(len(text.splitlines()), 60, text)
+        self.assertEqual(sum("ERG_JOB_SPEC={" in ln for ln in text.splitlines()), 1, text)
         self.assertFalse(os.path.exists(path + ".aux.xml"))
         # Values: the first image row is north, equal to the snapshot in float32.
         ds = gdal.Open(path)

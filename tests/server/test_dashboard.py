@@ -89,9 +89,10 @@ class Dashboard(ErgdTest):
         self.job_page_ready()
         self.assertIn("/jobs/" + self.done.id, self.browser.current_url)
         img = self.browser.find_element(By.ID, "preview")
-        # Full size: the PNG's own pixels (one per cell), not a thumbnail.
-        self.assertEqual(self.browser.execute_script("return arguments[0].naturalWidth", img), 128)
-        self.assertGreaterEqual(img.size["width"], 128)
+        # Full size: the worker's labelled preview (128 cells at 6 px each),
+        # the same PNG erg preview fetches, not a thumbnail.
+        self.assertEqual(self.browser.execute_script("return arguments[0].naturalWidth", img), 768)
+        self.assertGreaterEqual(img.size["width"], 768)
         self.assertEqual(self.browser.find_element(By.ID, "preview-caption").text, "step 240")
         self.assertEqual(self.browser.find_element(By.ID, "state").text, "SUCCEEDED")
         # Three plots with a line each, drawn from the progress events.

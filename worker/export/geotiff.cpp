@@ -16,6 +16,33 @@
 namespace erg::exporting {
 
 namespace {
+
+// The spec as one line of JSON: the snapshot holds it indented (job::to_json),
+// and a GeoTIFF tag of hundreds of lines drowns gdalinfo's output. Whitespace
+// outside strings is dropped; the spec is valid JSON (the worker wrote it),
+// and strings are copied as they are.
+std::string one_line_json(const std::string& json) {
+  std::string out;
+  out.reserve(json.size());
+  bool in_string = false, escaped = false;
+  for (const char c : json) {
+    if (in_string) {
+      out += c;
+      if (escaped)
+        escaped = false;
+      else if (c == '\\')
+        escaped = true;
+      else if (c == '"')
+        in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+      out += c;
+    } else if (c != ' ' && c != '\n' && c != '\r' && c != '\t') {
+      out += c;
+    }
+  }
+  return out;
+}
 // LOCAL_CS: GDAL and QGIS show metres, and nothing pretends the terrain lies
 // at a geographic position.
 constexpr const char* kLocalCs =
@@ -54,7 +81,8 @@ void write_geotiff(const std::string& path, const Field& f, const Provenance& p)
   // North-up: the first image row is the north edge.
   double gt[6] = {f.x0_m, f.pixel_m, 0, f.y0_m + f.ny * f.pixel_m, 0, -f.pixel_m};
   bool ok = GDALSetGeoTransform(ds, gt) == CE_None && GDALSetProjection(ds, kLocalCs) == CE_None;
-  ok = ok && GDALSetMetadataItem(ds, "ERG_JOB_SPEC", p.job_spec_json.c_str(), nullptr) == CE_None;
+  ok = ok && GDALSetMetadataItem(ds, "ERG_JOB_SPEC", one_line_json(p.job_spec_json).c_str(),
+                                 nullptr) == CE_None;
   ok =
       ok && GDALSetMetadataItem(ds, "ERG_STEP", std::to_string(p.step).c_str(), nullptr) == CE_None;
   ok = ok && GDALSetMetadataItem(ds, "ERG_TIME_DAYS", std::to_string(p.time_days).c_str(),

@@ -144,9 +144,38 @@ Checkpoint read_checkpoint(const std::string& path);
 // lit from the north-west at 45 degrees with the true cell size (the domain is
 // a torus: slopes wrap at the edges). Images wider than max_px are reduced by
 // box-averaging. `vegetation` may be null (none). Atomic.
+//
+// With `labels` (the run's previews) it is a picture to read: at least 768 px
+// on its long side (small grids upscaled, shaded at the output resolution
+// from bilinear heights), with a panel below the map: a scale bar of a round
+// number of metres, the colour legend of sand thickness, the step and
+// simulated time, and a compass with the current wind's arrow (pointing
+// where it blows) over the spokes of a multi-directional regime.
+struct PreviewLabels {
+  std::int64_t step = 0;
+  double time_days = 0;
+  double wind_x = 0, wind_y = 0;  // current wind, any speed unit (x east, y north)
+  struct Spoke {
+    double direction_deg;  // towards, counter-clockwise from east
+    double weight;         // relative (probability, flux share)
+  };
+  std::vector<Spoke> rose;  // two or more: drawn; empty: one direction
+};
 void write_preview_png(const std::string& path, int nx, int ny, double cell_size_m,
                        const float* bedrock, const float* sand, const float* vegetation,
-                       int max_px = 2048);
+                       int max_px = 2048, const PreviewLabels* labels = nullptr);
+// Where a labelled preview puts things (pixels, image top-left origin).
+struct PreviewLayout {
+  int width = 0, height = 0;             // the whole image
+  int map_w = 0, map_h = 0;              // the map, at the top-left
+  double metres_per_px = 0;              // of the map
+  double bar_m = 0;                      // the scale bar's length in metres ...
+  int bar_x = 0, bar_y = 0, bar_px = 0;  // ... and where it is (white, 6 px high)
+  int legend_x = 0, legend_y = 0, legend_w = 0, legend_h = 0;
+  int label_x = 0;  // step and time
+  int wind_cx = 0, wind_cy = 0, wind_r = 0;
+};
+PreviewLayout preview_layout(int nx, int ny, double cell_size_m, int max_px = 2048);
 
 // ---- input maps ------------------------------------------------------------
 // A 2-D map read as doubles, row-major [ny][nx], row 0 = y = 0 (south).

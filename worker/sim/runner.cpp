@@ -24,6 +24,7 @@
 #include "sim/moving_rate.h"
 #include "sim/resume_point.h"
 #include "sim/tiling.h"
+#include "wind/regime.h"
 
 namespace erg {
 
@@ -71,6 +72,28 @@ struct Context {
   bool tiled() const { return size > 1; }
 };
 
+// What a preview says besides the terrain: step, simulated time, the wind
+// of this step and, for a regime of several directions, its rose (a wind
+// rose's probabilities; a bidirectional wind's primary : secondary flux).
+io::PreviewLabels preview_labels(const Simulation& sim, const io::SnapshotMeta& meta) {
+  io::PreviewLabels l;
+  l.step = meta.step;
+  l.time_days = meta.time_days;
+  const Vec2 w = wind::at_step(sim.spec(), meta.step);
+  l.wind_x = w.x;
+  l.wind_y = w.y;
+  const erg::v1::WindRegime& r = wind::regime_in_effect(sim.spec(), meta.step);
+  if (r.has_rose()) {
+    for (const auto& e : r.rose().entries())
+      if (e.speed_mps() > 0) l.rose.push_back({e.direction_deg(), e.probability()});
+  } else if (r.has_bidirectional()) {
+    const auto& b = r.bidirectional();
+    l.rose.push_back({b.direction_deg(), b.flux_ratio()});
+    l.rose.push_back({b.direction_deg() + b.angle_deg(), 1.0});
+  }
+  return l;
+}
+
 void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progress& progress,
                    const Context& ctx) {
   const std::string name = step_name(sim.step_index());
@@ -90,15 +113,17 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
   std::string png;
   if (previews) {
     png = dir + "/previews/" + name + ".png";
+    const io::PreviewLabels labels = preview_labels(sim, meta);
     if (ctx.tiled()) {
       // The coordinator has only its tile: the preview is made from the file
       // (12 bytes per cell of the whole domain, on rank 0, for a moment).
       const io::Snapshot whole = io::read_snapshot(h5, /*terrain_only=*/true);
       io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, whole[fields::kBedrock].data(),
-                            whole[fields::kSand].data(), whole[fields::kVegetation].data());
+                            whole[fields::kSand].data(), whole[fields::kVegetation].data(), 2048,
+                            &labels);
     } else {
       io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, o[fields::kBedrock].data(),
-                            o[fields::kSand].data(), o[fields::kVegetation].data());
+                            o[fields::kSand].data(), o[fields::kVegetation].data(), 2048, &labels);
     }
   }
   erg::v1::WorkerEvent e;

@@ -133,6 +133,11 @@ Vec2 at_step(const erg::v1::JobSpec& spec, std::int64_t step) {
   return static_cast<float>(physics::ustar_per_speed(regime, s) * physics::model_gain(s)) * a;
 }
 
+const erg::v1::WindRegime& regime_in_effect(const erg::v1::JobSpec& spec, std::int64_t step) {
+  std::int64_t since = 0;
+  return regime_of(spec, step, since);
+}
+
 double shear_velocity_at(const erg::v1::JobSpec& spec, std::int64_t step) {
   if (!physics::physical(spec)) return 0.0;
   return static_cast<double>(length(at_step(spec, step))) /

@@ -23,6 +23,9 @@ Vec2 regime_at(const erg::v1::WindRegime& regime, std::int64_t local_step, std::
 // the job's regime.
 Vec2 at_step(const erg::v1::JobSpec& spec, std::int64_t step);
 
+// The regime that blows at `step` (the one at_step draws from).
+const erg::v1::WindRegime& regime_in_effect(const erg::v1::JobSpec& spec, std::int64_t step);
+
 // Shear velocity u* (m/s) of the high-altitude wind at a step in the
 // physical modes (wind/physics.h); 0 in model units.
 double shear_velocity_at(const erg::v1::JobSpec& spec, std::int64_t step);
