@@ -33,6 +33,17 @@ using dist::GhostOp;
 // rounds of an avalanching stage (the step passes it: Simulation::step).
 using Refill = std::function<void(std::initializer_list<fields::Id> ids, int width)>;
 
+// The refill at the start of an avalanche round of ghost width e (the last
+// round's: e_last), the same on every backend: the ghosts of the layer that
+// moves, and of bedrock under sand too when the round is wider than the last
+// (its heights are then recomputed further out), in one message.
+inline void refill_round(const Refill& refill, bool bedrock, int e, int e_last) {
+  if (e > e_last && !bedrock)
+    refill({fields::kSand, fields::kBedrock}, e + 1);
+  else
+    refill({bedrock ? fields::kBedrock : fields::kSand}, e + 1);
+}
+
 class Backend {
  public:
   virtual ~Backend() = default;

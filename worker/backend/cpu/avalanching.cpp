@@ -255,11 +255,7 @@ class AvalancheSweep {
     round_ = m_.rounds.of(it, iterations_);
     const int e_last = e_;
     e_ = 2 * round_.length;
-    // (A wider round, below, needs the other layer's ghosts too: one message.)
-    if (e_ > e_last && !bedrock_)
-      refill_({fields::kSand, fields::kBedrock}, e_ + 1);
-    else
-      refill_({bedrock_ ? fields::kBedrock : fields::kSand}, e_ + 1);
+    refill_round(refill_, bedrock_, e_, e_last);
     if (e_ <= e_last) {
       heights(-e_, 0, -e_, nx + e_);
       heights(ny, ny + e_, -e_, nx + e_);

@@ -132,10 +132,7 @@ int CudaBackend::avalanche(bool bedrock, int iterations, const Refill& refill, b
       round = m_.rounds.of(it, iterations);
       const int e_last = e;
       e = 2 * round.length;
-      if (e > e_last && !bedrock)
-        refill({fields::kSand, fields::kBedrock}, e + 1);
-      else
-        refill({bedrock ? fields::kBedrock : fields::kSand}, e + 1);
+      refill_round(refill, bedrock, e, e_last);
       ERG_LAUNCH(level0_kernel, grown_cells(g_, e).grid, grown_cells(g_, e).block, g_, e,
                  e <= e_last, bedrock, d_.bedrock.get(), d_.sand.get(), d_.obstacles.get(),
                  h_a_.get());
