@@ -12,7 +12,6 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -33,13 +32,9 @@
 
 namespace erg::client {
 
-namespace fs = std::filesystem;
-
 std::string worker_path() {
   if (const char* env = std::getenv("ERG_WORKER")) return env;
-  const fs::path dir = io::program_dir();
-  if (!dir.empty() && fs::exists(dir / "erg-worker")) return (dir / "erg-worker").string();
-  return "erg-worker";
+  return io::sibling_program("erg-worker");
 }
 
 namespace {

@@ -58,10 +58,9 @@ int cmd_validate(const std::vector<std::string>& args) {
   // "Platform notes").
   const char* py_env = std::getenv("ERG_PYTHON");
   std::string python = py_env ? py_env : "/usr/bin/python3";
-  std::error_code self_ec;
-  const std::string self = fs::read_symlink("/proc/self/exe", self_ec).string();
+  const std::string self = io::program_path().string();
   std::vector<std::string> argv_s = {python, script, "--worker", worker_path()};
-  if (!self_ec) argv_s.insert(argv_s.end(), {"--erg", self});
+  if (!self.empty()) argv_s.insert(argv_s.end(), {"--erg", self});
   argv_s.insert(argv_s.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (auto& a : argv_s) argv.push_back(a.data());

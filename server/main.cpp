@@ -220,11 +220,7 @@ Options parse_flags(int argc, char** argv) {
 
 // erg-worker next to ergd, else erg-worker on PATH.
 std::string default_worker() {
-  std::error_code ec;
-  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
-  return (!ec && fs::exists(self.parent_path() / "erg-worker"))
-             ? (self.parent_path() / "erg-worker").string()
-             : "erg-worker";
+  return erg::io::sibling_program("erg-worker");
 }
 
 // Signals go to one thread (sigwait); every other thread, and the workers

@@ -13,11 +13,25 @@
 
 namespace erg::io {
 
-// The directory of the running program (/proc/self/exe), empty if unknown.
-inline std::filesystem::path program_dir() {
+// The running program's own path (/proc/self/exe), empty if unknown.
+inline std::filesystem::path program_path() {
   std::error_code ec;
   const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  return ec ? std::filesystem::path() : self.parent_path();
+  return ec ? std::filesystem::path() : self;
+}
+
+// The directory of the running program, empty if unknown.
+inline std::filesystem::path program_dir() {
+  return program_path().parent_path();
+}
+
+// The program NAME installed beside the running one (erg and ergd start
+// erg-worker from there), else NAME alone, for PATH to find.
+inline std::string sibling_program(const std::string& name) {
+  const std::filesystem::path dir = program_dir();
+  std::error_code ec;
+  if (!dir.empty() && std::filesystem::exists(dir / name, ec)) return (dir / name).string();
+  return name;
 }
 
 // PROGRAM_DIR/../share/erg/RELATIVE when it exists, else BUILD_TREE_PATH.
