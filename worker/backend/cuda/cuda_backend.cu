@@ -11,7 +11,6 @@
 
 #include "backend/cuda/cuda_backend.h"
 #include "backend/device_choice.h"
-#include "dist/halo_frame.h"
 #include "stages/events.h"
 #include "stages/vegetation.h"
 
@@ -459,34 +458,39 @@ __global__ void unpack_frame_kernel(const T* in, TileGeom g, dist::HaloFrame fr,
 }
 }  // namespace
 
+// The frame of width w (at most the halo) and its two staging buffers, sized
+// for elements of `elem` bytes; the bytes are counted as staged (one way).
+CudaBackend::FrameStaging CudaBackend::frame_staging(int w, std::size_t elem) {
+  FrameStaging s{dist::HaloFrame{g_.nx, g_.ny, w < g_.halo ? w : g_.halo}, 0, nullptr, nullptr};
+  s.bytes = s.frame.size() * elem;
+  if (s.bytes == 0) return s;
+  if (frame_dev_.size() < s.bytes) frame_dev_.reset(s.bytes);
+  s.device = frame_dev_.get();
+  s.host = frame_host_.at_least(s.bytes);
+  ex_.count_host_staged(static_cast<long long>(s.bytes));
+  return s;
+}
+
 template <class T>
 void CudaBackend::frame_to_host(const DeviceBuffer<T>& d, Field<T>& h, int w) {
-  const dist::HaloFrame fr{g_.nx, g_.ny, w < g_.halo ? w : g_.halo};
-  const std::size_t n = fr.size(), bytes = n * sizeof(T);
-  if (n == 0) return;
-  if (frame_dev_.size() < bytes) frame_dev_.reset(bytes);
-  T* packed = reinterpret_cast<T*>(frame_dev_.get());
-  const Launch l = flat(n);
-  ERG_LAUNCH(pack_frame_kernel<T>, l.grid, l.block, d.get(), g_, fr, packed);
-  T* host = static_cast<T*>(frame_host_.at_least(bytes));
-  ERG_CUDA_CHECK(cudaMemcpy(host, packed, bytes, cudaMemcpyDeviceToHost));
-  dist::unpack_frame(host, fr, h);
-  ex_.count_host_staged(static_cast<long long>(bytes));
+  const FrameStaging s = frame_staging(w, sizeof(T));
+  if (s.bytes == 0) return;
+  const Launch l = flat(s.frame.size());
+  ERG_LAUNCH(pack_frame_kernel<T>, l.grid, l.block, d.get(), g_, s.frame,
+             static_cast<T*>(s.device));
+  ERG_CUDA_CHECK(cudaMemcpy(s.host, s.device, s.bytes, cudaMemcpyDeviceToHost));
+  dist::unpack_frame(static_cast<const T*>(s.host), s.frame, h);
 }
 
 template <class T>
 void CudaBackend::frame_to_device(const Field<T>& h, DeviceBuffer<T>& d, int w) {
-  const dist::HaloFrame fr{g_.nx, g_.ny, w < g_.halo ? w : g_.halo};
-  const std::size_t n = fr.size(), bytes = n * sizeof(T);
-  if (n == 0) return;
-  if (frame_dev_.size() < bytes) frame_dev_.reset(bytes);
-  T* host = static_cast<T*>(frame_host_.at_least(bytes));
-  dist::pack_frame(h, fr, host);
-  T* packed = reinterpret_cast<T*>(frame_dev_.get());
-  ERG_CUDA_CHECK(cudaMemcpy(packed, host, bytes, cudaMemcpyHostToDevice));
-  const Launch l = flat(n);
-  ERG_LAUNCH(unpack_frame_kernel<T>, l.grid, l.block, packed, g_, fr, d.get());
-  ex_.count_host_staged(static_cast<long long>(bytes));
+  const FrameStaging s = frame_staging(w, sizeof(T));
+  if (s.bytes == 0) return;
+  dist::pack_frame(h, s.frame, static_cast<T*>(s.host));
+  ERG_CUDA_CHECK(cudaMemcpy(s.device, s.host, s.bytes, cudaMemcpyHostToDevice));
+  const Launch l = flat(s.frame.size());
+  ERG_LAUNCH(unpack_frame_kernel<T>, l.grid, l.block, static_cast<const T*>(s.device), g_, s.frame,
+             d.get());
 }
 
 // On one tile the periodic wrap runs on the device (a fill copies owners

@@ -23,6 +23,7 @@
 #include "core/fields.h"
 #include "core/grid.h"
 #include "core/units.h"
+#include "dist/halo_frame.h"
 
 namespace erg::gpu {
 
@@ -256,6 +257,13 @@ class CudaBackend final : public Backend {
   total_t sum_rows(int first, int count) const;
   // The halo frame of width w (dist/halo_frame.h) of a device field to its
   // host staging field and back, through frame_dev_ and frame_host_.
+  struct FrameStaging {
+    dist::HaloFrame frame;
+    std::size_t bytes;
+    void* device;
+    void* host;
+  };
+  FrameStaging frame_staging(int w, std::size_t elem);
   template <class T>
   void frame_to_host(const DeviceBuffer<T>& d, Field<T>& h, int w);
   template <class T>
