@@ -138,6 +138,8 @@ struct Checkpoint : fields::ByField<std::vector> {
 void write_checkpoint(const std::string& path, const Checkpoint& c);  // atomic
 Checkpoint read_checkpoint(const std::string& path);
 
+// Grids longer than this (cells) on a side are box-averaged down to it.
+constexpr int kPreviewMaxPx = 2048;
 // ---- previews --------------------------------------------------------------
 // Hillshaded PNG (8-bit RGB, one pixel per cell, north up): bare bedrock in
 // grey, sand tinted from pale to deep ochre with thickness, vegetation green,
@@ -163,7 +165,7 @@ struct PreviewLabels {
 };
 void write_preview_png(const std::string& path, int nx, int ny, double cell_size_m,
                        const float* bedrock, const float* sand, const float* vegetation,
-                       int max_px = 2048, const PreviewLabels* labels = nullptr);
+                       int max_px = kPreviewMaxPx, const PreviewLabels* labels = nullptr);
 // Where a labelled preview puts things (pixels, image top-left origin).
 struct PreviewLayout {
   int width = 0, height = 0;             // the whole image

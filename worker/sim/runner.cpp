@@ -114,17 +114,14 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
   if (previews) {
     png = dir + "/previews/" + name + ".png";
     const io::PreviewLabels labels = preview_labels(sim, meta);
-    if (ctx.tiled()) {
-      // The coordinator has only its tile: the preview is made from the file
-      // (12 bytes per cell of the whole domain, on rank 0, for a moment).
-      const io::Snapshot whole = io::read_snapshot(h5, /*terrain_only=*/true);
-      io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, whole[fields::kBedrock].data(),
-                            whole[fields::kSand].data(), whole[fields::kVegetation].data(), 2048,
-                            &labels);
-    } else {
-      io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, o[fields::kBedrock].data(),
-                            o[fields::kSand].data(), o[fields::kVegetation].data(), 2048, &labels);
-    }
+    // Tiled, the coordinator has only its tile: the preview is made from the
+    // file (12 bytes per cell of the whole domain, on rank 0, for a moment).
+    io::Snapshot whole;
+    if (ctx.tiled()) whole = io::read_snapshot(h5, /*terrain_only=*/true);
+    const auto layer = [&](fields::Id id) { return ctx.tiled() ? whole[id].data() : o[id].data(); };
+    io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, layer(fields::kBedrock),
+                          layer(fields::kSand), layer(fields::kVegetation), io::kPreviewMaxPx,
+                          &labels);
   }
   erg::v1::WorkerEvent e;
   e.set_step(sim.step_index());
