@@ -445,7 +445,13 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
         << html_escape(j.spec().name()) << "</td><td class=\"" << state << "\">" << state
         << "</td><td><div class=\"bar\"><div "
         << "style=\"width:" << static_cast<int>(frac * 100) << "%\"></div></div>" << p.step()
-        << " / " << p.total_steps() << "</td><td>";
+        << " / " << p.total_steps();
+      // Simulated time beside the steps, in the years the job page and the
+      // snapshots use (physical when the wind is calibrated, else the
+      // model's time_step_days label).
+      char years[48];
+      std::snprintf(years, sizeof years, "%.3g", p.time_days() / 365.25);
+      o << "<br><span class=\"years\">" << years << " years</span></td><td>";
       char rate[32];
       std::snprintf(rate, sizeof rate, "%.2f", p.steps_per_s());
       o << rate << "</td><td class=\"launcher\">" << html_escape(j.launcher()) << " "

@@ -84,6 +84,9 @@ class Dashboard(ErgdTest):
         rows = self.browser.find_elements(By.CSS_SELECTOR, "tr.job")
         self.assertEqual([r.get_attribute("data-job") for r in rows], [self.done.id])
         self.browser.find_element(By.LINK_TEXT, "all").click()
+        # Simulated years beside the steps: 240 steps x the default 10 days.
+        done_row = self.browser.find_element(By.CSS_SELECTOR, 'tr.job[data-job="%s"]' % self.done.id)
+        self.assertEqual(done_row.find_element(By.CLASS_NAME, "years").text, "6.57 years")
         self.browser.save_screenshot(os.path.join(self.shots, "dashboard-list.png"))
         self.browser.find_element(By.LINK_TEXT, self.done.id).click()
         self.job_page_ready()
@@ -95,6 +98,8 @@ class Dashboard(ErgdTest):
         self.assertGreaterEqual(img.size["width"], 768)
         self.assertEqual(self.browser.find_element(By.ID, "preview-caption").text, "step 240")
         self.assertEqual(self.browser.find_element(By.ID, "state").text, "SUCCEEDED")
+        self.assertRegex(self.browser.find_element(By.ID, "summary").text,
+                         r"^step 240 of 240 \(6\.6 simulated years\)")
         # Three plots with a line each, drawn from the progress events.
         for pid in ("plot-rate", "plot-relief", "plot-flux"):
             lines = self.browser.find_elements(By.CSS_SELECTOR, "#%s polyline" % pid)
