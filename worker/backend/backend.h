@@ -9,6 +9,7 @@
 #include <initializer_list>
 #include <memory>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -44,6 +45,16 @@ inline void refill_round(const Refill& refill, bool bedrock, int e, int e_last) 
     refill({bedrock ? fields::kBedrock : fields::kSand}, e + 1);
 }
 
+// upload_owned's preconditions, the same on every backend.
+inline void check_owned_upload(fields::Id id, const std::vector<float>& in, const TileGeom& g) {
+  if (fields::info(id).type != fields::Type::kFloat)
+    throw std::invalid_argument(std::string("upload_owned: ") + fields::info(id).name +
+                                " is held in integer units");
+  if (in.size() != static_cast<std::size_t>(g.nx) * g.ny)
+    throw std::invalid_argument(std::string("upload_owned: ") + fields::info(id).name +
+                                " needs one value per owned cell");
+}
+
 class Backend {
  public:
   virtual ~Backend() = default;
@@ -55,6 +66,11 @@ class Backend {
   // Any registry field (core/fields.h) at the owned cells, row-major
   // [ny][nx], in its unit (integer units as metres): what snapshots hold.
   virtual void download_owned(fields::Id id, std::vector<float>& out) = 0;
+  // Sets a float field's owned cells from row-major [ny][nx] values (a
+  // kUnits field is refused: conserved sand enters only through upload).
+  // For tests that hand two backends the same inputs at a stage boundary
+  // (tests/common/stage_agreement.h); the ghosts are the next exchange's.
+  virtual void upload_owned(fields::Id id, const std::vector<float>& in) = 0;
 
   // --- ghosts ---------------------------------------------------------------
   // Moves the ghosts of the listed fields through the exchange (a fill, the

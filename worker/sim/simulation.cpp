@@ -195,6 +195,7 @@ void Simulation::step() {
   auto lap = [&](Stage s) {
     backend_->synchronize();
     times_.ms[s] += ms_since(t);
+    if (observer_) observer_(s);
     t = Clock::now();
   };
   Halo& halo = *halo_;

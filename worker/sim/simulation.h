@@ -4,10 +4,12 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <initializer_list>
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "backend/backend.h"
@@ -80,6 +82,11 @@ class Simulation {
 
   // Advances one step: the step's events, then the pipeline.
   void step();
+  // Called at the end of every stage of step(), with the stage that ended
+  // (after the backend finished its work): tests compare two backends stage
+  // by stage there (tests/common/stage_agreement.h). None by default.
+  using StageObserver = std::function<void(Stage)>;
+  void set_stage_observer(StageObserver observer) { observer_ = std::move(observer); }
 
   // Appends timeline events to the spec (steering a running job). They take
   // effect like the job's own events: an event at step S applies at the start
@@ -136,6 +143,7 @@ class Simulation {
   int local_rank_ = 0;
   std::unique_ptr<Backend> backend_;
   std::optional<Halo> halo_;
+  StageObserver observer_;
   std::int64_t step_ = 0;
   total_t sand_added_ = 0, bedrock_added_ = 0;
   StageTimes times_;

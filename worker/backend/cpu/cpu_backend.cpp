@@ -78,6 +78,11 @@ void CpuBackend::download_owned(fields::Id id, std::vector<float>& out) {
     out = owned_cells(reals(id));
 }
 
+void CpuBackend::upload_owned(fields::Id id, const std::vector<float>& in) {
+  check_owned_upload(id, in, g_);
+  set_owned_cells(reals(id), in);
+}
+
 void CpuBackend::update_repose() {
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y) {

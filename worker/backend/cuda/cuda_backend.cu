@@ -387,6 +387,13 @@ void CudaBackend::download_owned(fields::Id id, std::vector<float>& out) {
   for (std::size_t i = 0; i < u.size(); ++i) out[i] = static_cast<float>(units_to_m_d(u[i]));
 }
 
+void CudaBackend::upload_owned(fields::Id id, const std::vector<float>& in) {
+  check_owned_upload(id, in, g_);
+  ERG_CUDA_CHECK(cudaMemcpy2D(reals(id).get() + g_.at(0, 0), sizeof(float) * g_.pitch, in.data(),
+                              sizeof(float) * g_.nx, sizeof(float) * g_.nx, g_.ny,
+                              cudaMemcpyHostToDevice));
+}
+
 void CudaBackend::update_repose() {
   const Launch l = owned_cells(g_);
   ERG_LAUNCH(repose_kernel, l.grid, l.block, g_, d_.vegetation.get(), d_.tan_l.get(), m_.tan_l_sand,

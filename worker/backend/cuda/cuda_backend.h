@@ -224,6 +224,7 @@ class CudaBackend final : public Backend {
   void upload(const TileState& s) override;
   void download(TileState& s) override;
   void download_owned(fields::Id id, std::vector<float>& out) override;
+  void upload_owned(fields::Id id, const std::vector<float>& in) override;
 
   void ghosts(GhostOp op, std::span<const FieldGhosts> fields) override;
   void obstacles_changed() override;  // updates any_obstacles_
