@@ -56,6 +56,7 @@ inline StageResult stage_result(Simulation& sim) {
 struct Agreement {
   std::array<double, fields::kCount> max_abs{};
   int stages_compared = 0;
+  long long avalanche_iterations = 0;  // run b's iterations that moved sand: work was compared
 };
 
 namespace detail {
@@ -163,6 +164,7 @@ inline std::string first_stage_mismatch(const erg::v1::JobSpec& spec_a, const Ru
     sa.step();
     sb.step();
   }
+  agreement->avalanche_iterations = sb.times().avalanche_iterations;
   return mismatch;
 }
 
