@@ -31,8 +31,8 @@ class CoarseSmoother {
  private:
   CoarseGrid c_;
   wind_warping::TileWindow t_;
-  std::vector<double> kx_[2], ky_[2];  // wind_warping::gaussian_kernel per scale and axis
-  std::vector<double> rows_, smooth_;  // the passes along y and along x
+  std::vector<double> kx_[2], ky_[2];        // wind_warping::gaussian_kernel per scale and axis
+  std::vector<double> rows_[2], smooth_[2];  // the passes along y and along x, per scale
 };
 
 class CpuBackend final : public Backend {

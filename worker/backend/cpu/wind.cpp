@@ -34,48 +34,67 @@ void CoarseSmoother::gradients(const std::vector<double>& window, std::vector<fl
   const wind_warping::TileWindow t = t_;
   const int wx = t.wx(), sx = t.tcnx + 4, rows = t.tcny + 4;
   const int gnx = t.tcnx + 2, gny = t.tcny + 2;
-  rows_.assign(static_cast<size_t>(rows) * wx, 0.0);
-  smooth_.assign(static_cast<size_t>(rows) * sx, 0.0);
   const double dx = c_.cx * c_.cell_m, dy = c_.cy * c_.cell_m;
   for (int s = 0; s < 2; ++s) {
-    const int rx = c_.radius_x[s], ry = c_.radius_y[s];
-    const double* wy = ky_[s].data();
-    const double* wxk = kx_[s].data();
-    // Along y, only at the columns the pass along x reads.
-    const int i0 = t.hx - 2 - rx, i1 = t.hx + t.tcnx + 2 + rx;
+    rows_[s].resize(static_cast<size_t>(rows) * wx);
+    smooth_[s].resize(static_cast<size_t>(rows) * sx);
+    grad_x[s].resize(static_cast<size_t>(gnx) * gny);
+    grad_y[s].resize(static_cast<size_t>(gnx) * gny);
+  }
+  // In blocks of rows and strips of columns, so that the 2 r + 1 input rows
+  // a strip reads stay in cache from one output row to the next (each
+  // output's taps still run k = 0 .. 2 r). Both scales in each pass: one
+  // parallel region, three barriers.
+  constexpr int kRowBlock = 16, kStrip = 64;
+  const int blocks = (rows + kRowBlock - 1) / kRowBlock;
 #pragma omp parallel num_threads(threads)
-    {
+  {
 #pragma omp for schedule(static)
-      for (int j = 0; j < rows; ++j) {
-        double* __restrict out = rows_.data() + static_cast<size_t>(j) * wx;
-        for (int i = i0; i < i1; ++i) out[i] = 0.0;
-        for (int k = 0; k <= 2 * ry; ++k) {
-          const double w = wy[k];
-          const double* __restrict in =
-              window.data() + static_cast<size_t>(j + t.hy - 2 - ry + k) * wx;
-          for (int i = i0; i < i1; ++i) out[i] += w * in[i];
-        }
-      }
-#pragma omp for schedule(static)
-      for (int j = 0; j < rows; ++j) {
-        double* __restrict out = smooth_.data() + static_cast<size_t>(j) * sx;
-        for (int i = 0; i < sx; ++i) out[i] = 0.0;
-        const double* row = rows_.data() + static_cast<size_t>(j) * wx + (t.hx - 2 - rx);
-        for (int k = 0; k <= 2 * rx; ++k) {
-          const double w = wxk[k];
-          const double* __restrict in = row + k;
-          for (int i = 0; i < sx; ++i) out[i] += w * in[i];
+    for (int sb = 0; sb < 2 * blocks; ++sb) {
+      const int s = sb / blocks, jb = (sb % blocks) * kRowBlock;
+      const int rx = c_.radius_x[s], ry = c_.radius_y[s];
+      const double* wy = ky_[s].data();
+      // Along y, only at the columns the pass along x reads.
+      const int i0 = t.hx - 2 - rx, i1 = t.hx + t.tcnx + 2 + rx;
+      for (int ib = i0; ib < i1; ib += kStrip) {
+        const int n = ib + kStrip < i1 ? kStrip : i1 - ib;
+        for (int j = jb; j < jb + kRowBlock && j < rows; ++j) {
+          double acc[kStrip];
+          for (int i = 0; i < n; ++i) acc[i] = 0.0;
+          for (int k = 0; k <= 2 * ry; ++k) {
+            const double w = wy[k];
+            const double* __restrict in =
+                window.data() + static_cast<size_t>(j + t.hy - 2 - ry + k) * wx + ib;
+            for (int i = 0; i < n; ++i) acc[i] += w * in[i];
+          }
+          double* __restrict out = rows_[s].data() + static_cast<size_t>(j) * wx + ib;
+          for (int i = 0; i < n; ++i) out[i] = acc[i];
         }
       }
     }
-    grad_x[s].resize(static_cast<size_t>(gnx) * gny);
-    grad_y[s].resize(static_cast<size_t>(gnx) * gny);
-    for (int j = 0; j < gny; ++j)
+#pragma omp for schedule(static)
+    for (int sj = 0; sj < 2 * rows; ++sj) {
+      const int s = sj / rows, j = sj % rows;
+      const int rx = c_.radius_x[s];
+      const double* wxk = kx_[s].data();
+      double* __restrict out = smooth_[s].data() + static_cast<size_t>(j) * sx;
+      for (int i = 0; i < sx; ++i) out[i] = 0.0;
+      const double* row = rows_[s].data() + static_cast<size_t>(j) * wx + (t.hx - 2 - rx);
+      for (int k = 0; k <= 2 * rx; ++k) {
+        const double w = wxk[k];
+        const double* __restrict in = row + k;
+        for (int i = 0; i < sx; ++i) out[i] += w * in[i];
+      }
+    }
+#pragma omp for schedule(static)
+    for (int sj = 0; sj < 2 * gny; ++sj) {
+      const int s = sj / gny, j = sj % gny;
       for (int i = 0; i < gnx; ++i) {
-        const Vec2 g = wind_warping::gradient_at(smooth_.data(), t, dx, dy, i, j);
+        const Vec2 g = wind_warping::gradient_at(smooth_[s].data(), t, dx, dy, i, j);
         grad_x[s][static_cast<size_t>(j) * gnx + i] = g.x;
         grad_y[s][static_cast<size_t>(j) * gnx + i] = g.y;
       }
+    }
   }
 }
 
