@@ -12,8 +12,6 @@ packages=(
   build-essential cmake ninja-build pkg-config git clang-format
   # MPI and parallel HDF5 (the worker, snapshots, checkpoints)
   openmpi-bin libopenmpi-dev libhdf5-openmpi-dev hdf5-tools
-  # FFT for the wind-warping Gaussian smoothing on the CPU backend
-  libfftw3-dev
   # the job schema (protobuf JSON) and the service
   libprotobuf-dev protobuf-compiler libgrpc++-dev protobuf-compiler-grpc
   # previews and map files

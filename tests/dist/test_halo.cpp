@@ -18,6 +18,7 @@
 #include "dist/decomposition.h"
 #include "dist/halo.h"
 #include "dist/halo_frame.h"
+#include "dist/mpi_exchange.h"
 
 namespace erg::dist {
 namespace {
@@ -538,6 +539,45 @@ TEST_F(Dist, RejectsInconsistentTiles) {
   else if (s.i == 0)
     g.ny += 1;
   EXPECT_THROW(HaloExchanger(s.cart, g), std::invalid_argument);
+}
+
+// ---- the coarse window of the wind warping ----------------------------------
+
+// Every tile's window (its coarse cells and a halo that may be wider than
+// any tile and than the torus) holds the wrapped global coarse cells, on
+// uneven tiles, strips and square-ish grids; one rank's window is the
+// periodic one.
+TEST_F(Dist, CoarseWindowIsTheWrappedGlobalGrid) {
+  const auto value = [](int x, int y) { return 1000.0 * y + x + 0.25; };
+  for (const int px : {0, -1}) {
+    const TileSetup s(61, 23, px, px < 0 ? 1 : 0, 1);  // 1 fine cell per coarse cell
+    MpiExchange ex(s.cart, s.d, s.g, 1, 1);
+    std::vector<double> mine(static_cast<size_t>(s.g.nx) * s.g.ny);
+    for (int y = 0; y < s.g.ny; ++y)
+      for (int x = 0; x < s.g.nx; ++x)
+        mine[static_cast<size_t>(y) * s.g.nx + x] = value(s.g.x0 + x, s.g.y0 + y);
+    for (const auto& [hx, hy] : {std::pair{0, 0}, {3, 2}, {40, 29}, {3, 55}}) {
+      std::vector<double> window;
+      ex.coarse_window(mine, s.g.nx, s.g.ny, hx, hy, window);
+      const int wx = s.g.nx + 2 * hx, wy = s.g.ny + 2 * hy;
+      ASSERT_EQ(window.size(), static_cast<size_t>(wx) * wy);
+      int wrong = 0;
+      for (int j = 0; j < wy; ++j)
+        for (int i = 0; i < wx; ++i) {
+          const int gx = ((s.g.x0 - hx + i) % 61 + 61) % 61;
+          const int gy = ((s.g.y0 - hy + j) % 23 + 23) % 23;
+          wrong += window[static_cast<size_t>(j) * wx + i] != value(gx, gy);
+        }
+      EXPECT_EQ(wrong, 0) << "halo " << hx << " x " << hy << " on " << s.d.px << " x " << s.d.py
+                          << " tiles, tile (" << s.i << ", " << s.j << ")";
+      if (world_size() == 1) {
+        PeriodicExchange one;
+        std::vector<double> wrapped;
+        one.coarse_window(mine, s.g.nx, s.g.ny, hx, hy, wrapped);
+        EXPECT_TRUE(wrapped == window) << "halo " << hx << " x " << hy;
+      }
+    }
+  }
 }
 
 // Prints the failures of ranks other than 0, whose default printer is off.

@@ -277,6 +277,29 @@ TEST(Tiling, SettledTilesWaitForASpreadingColumn) {
 // iteration of the first steps, so N = 12 and N = 48 both use the second,
 // wider round; refills every 4 iterations would send several times the
 // messages at N = 48.
+// The wind warping's coarse halo (102 coarse cells of 4 m at the default
+// radii) is wider than every tile and than the torus itself (64 x 48 coarse
+// cells): every tile gathers its window from the tiles that cover it,
+// several times around the torus. 1, 2, 4, 8 and 16 ranks give the same bits.
+TEST(Tiling, WindWarpingGivesTheSameBitsOnOneToSixteenRanks) {
+  TempDir t("erg_tiling");
+  write(t / "relief.json", R"({"domain": {"nx": 256, "ny": 192, "cell_size_m": 1.0},
+ "layers": {"bedrock": {"fbm": {"amplitude": 8, "wavelength_m": 96, "octaves": 3}},
+            "sand": {"patches": {"coverage": 0.5, "radius_m": 10, "height": 2, "falloff_m": 4}}},
+ "wind": {"constant": {"speed_mps": 6, "direction_deg": 25}},
+ "model": {"avalanche_iterations": 12},
+ "run": {"steps": 6, "snapshot_every": 3}})");
+  const std::string one = t / "ranks1";
+  Result r = run(worker_on(1, (t / "relief.json") + " --out " + one + " --quiet --threads 1"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  for (int ranks : {2, 4, 8, 16}) {
+    const std::string dir = t / ("ranks" + std::to_string(ranks));
+    r = run(worker_on(ranks, (t / "relief.json") + " --out " + dir + " --quiet --threads 1"));
+    ASSERT_EQ(r.code, 0) << ranks << " ranks: " << r.output;
+    expect_same_runs(one, dir, {"00000003", "00000006"}, std::to_string(ranks) + " ranks");
+  }
+}
+
 // halo_messages_per_step of the worker's done event (the most any rank sent).
 double halo_messages_per_step(const std::string& output) {
   std::istringstream lines(output);
@@ -291,7 +314,9 @@ double halo_messages_per_step(const std::string& output) {
 // where nothing avalanches, the heights (before the shadow), the landed sand
 // (summed back) and sand, bedrock and impact strengths together (before
 // reptation), each one message per neighbour and phase: 3 x 4 per rank and
-// step, where one message per field and exchange made 5 x 4.
+// step, where one message per field and exchange made 5 x 4; plus the wind
+// warping's coarse window, one message to each other tile it needs (here
+// the one other tile: 13).
 TEST(Tiling, AStepSendsOneMessagePerNeighbourForEachExchangeItLists) {
   TempDir t("erg_tiling");
   write(t / "flat.json", R"({"domain": {"nx": 192, "ny": 96, "cell_size_m": 1.0},
@@ -300,7 +325,7 @@ TEST(Tiling, AStepSendsOneMessagePerNeighbourForEachExchangeItLists) {
   const Result r = run(
       worker_on(2, (t / "flat.json") + " --out " + (t / "flat") + " --progress-fd 1 --threads 1"));
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_EQ(halo_messages_per_step(r.output), 12.0) << r.output;
+  EXPECT_EQ(halo_messages_per_step(r.output), 13.0) << r.output;
 }
 
 TEST(Tiling, HaloMessagesDoNotGrowWithAvalancheIterations) {

@@ -6,9 +6,9 @@
 // - 1, 2 and 4 tiles on one GPU (ranks sharing it) give the same bits;
 // - a checkpoint and resume continues bitwise;
 // - the landforms match the CPU backend's: the same exact totals and the
-//   relief within 2% (the float fields may differ in the last bits: cuFFT
-//   and FFTW sum in different orders, so the wind, and then the cells it
-//   moves, can differ).
+//   relief within 2% (the float fields may differ in the last bits: the
+//   device's math functions need not round as the host's do, so the wind,
+//   and then the cells it moves, can differ).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 

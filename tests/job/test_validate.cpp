@@ -252,6 +252,18 @@ const std::vector<BadSpec> kBadSpecs = {
      job(R"("wind": {"constant": {"speed_mps": 1}}, "events": [{"step": 3, "add_obstacle": {}}])"),
      nullptr,
      {"events[0].add_obstacle has no shape"}},
+    // The wind warping's coarse cell: 4 cells at 1 m and the default radii
+    // (sigma_min / 4 = 6.25 m), 16 at 0.25 m.
+    {"DomainNotAMultipleOfTheCoarseWindCell",
+     R"({"domain": {"nx": 66, "ny": 48, "cell_size_m": 1}, "wind": {"constant": {"speed_mps": 1}}})",
+     nullptr,
+     {"domain.nx = 66 is not a multiple of the wind-warping coarse cell, 4 cells",
+      "allowed domain.nx = multiples of 4, e.g. 64 or 68"}},
+    {"FineCellsMakeTheCoarseWindCellWider",
+     R"({"domain": {"nx": 64, "ny": 40, "cell_size_m": 0.25}, "wind": {"constant": {"speed_mps": 1}}})",
+     nullptr,
+     {"domain.ny = 40 is not a multiple of the wind-warping coarse cell, 16 cells",
+      "e.g. 32 or 48"}},
     {"EchoReachBeyondTheHalo",
      job(R"("wind": {"constant": {"speed_mps": 1}}, "model": {"echo_dunes": true, "echo_reach_m": 200})"),
      nullptr,

@@ -30,10 +30,15 @@ class Exchange {
   virtual void sum_exact(std::vector<total_t>& v) = 0;
   // Logical or over all tiles.
   virtual bool any(bool local) = 0;
-  // The coarse wind grid: every tile contributes the coarse cells it owns
-  // (`mine`, row-major over its coarse rectangle); every tile receives the
-  // whole grid, row-major [cny][cnx]. Tiles are aligned to coarse cells.
-  virtual void gather_coarse(const std::vector<double>& mine, std::vector<double>& all) = 0;
+  // The coarse window of the wind warping: `mine` holds this tile's coarse
+  // cells (row-major [tcny][tcnx]; tiles are aligned to coarse cells);
+  // `window` receives the (tcny + 2 hy) x (tcnx + 2 hx) coarse cells around
+  // them on the torus, row-major, the tile's cell (0, 0) at (hx, hy). The
+  // halo may be wider than any tile and than the domain (it wraps); only the
+  // tiles covering it are asked, and every value is a copy, so the window is
+  // the same whatever the tiling.
+  virtual void coarse_window(const std::vector<double>& mine, int tcnx, int tcny, int hx, int hy,
+                             std::vector<double>& window) = 0;
 
   // Messages and bytes sent by this tile so far (0 on one process), and the
   // bytes a device backend staged through host memory for the exchanges
@@ -65,9 +70,8 @@ class PeriodicExchange final : public Exchange {
   void ghosts(GhostOp op, std::span<const Ghosts> fields) override;
   void sum_exact(std::vector<total_t>&) override {}
   bool any(bool local) override { return local; }
-  void gather_coarse(const std::vector<double>& mine, std::vector<double>& all) override {
-    all = mine;
-  }
+  void coarse_window(const std::vector<double>& mine, int tcnx, int tcny, int hx, int hy,
+                     std::vector<double>& window) override;
 };
 
 // The periodic wrap of a whole-domain tile (halos wider than the tile wrap

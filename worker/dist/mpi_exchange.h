@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // The Exchange of a tile on an MPI rank: ghosts through HaloExchanger,
-// exact sums and the coarse wind grid through collectives.
+// exact sums through collectives; the coarse window of the wind warping
+// point-to-point with the tiles that cover it.
 #pragma once
 
 #include <mpi.h>
@@ -22,14 +23,15 @@ class MpiExchange final : public Exchange {
 
   void sum_exact(std::vector<total_t>& v) override;
   bool any(bool local) override;
-  void gather_coarse(const std::vector<double>& mine, std::vector<double>& all) override;
+  void coarse_window(const std::vector<double>& mine, int tcnx, int tcny, int hx, int hy,
+                     std::vector<double>& window) override;
 
   int tiles() const override { return size_; }
 
  protected:
   Stats traffic() const override {
     const HaloExchanger::Stats s = halo_.stats();
-    return {s.messages, s.bytes, 0};
+    return {s.messages + coarse_messages_, s.bytes + coarse_bytes_, 0};
   }
 
  private:
@@ -38,8 +40,27 @@ class MpiExchange final : public Exchange {
   int cx_, cy_;
   int size_ = 1;
   HaloExchanger halo_;
-  // The coarse rectangle of every rank: origin and size in coarse cells.
-  std::vector<int> cx0_, cy0_, cnx_, cny_, counts_, displs_;
+  int rank_ = 0;
+  // The coarse columns of every tile column and the coarse rows of every
+  // tile row: origin and size in coarse cells; the rank of every tile.
+  std::vector<int> col0_, ncol_, row0_, nrow_, rank_of_;  // rank_of_[tj * px + ti]
+  std::vector<int> ti_of_, tj_of_;                        // tile coordinates of every rank
+  // Who sends which coarse cells for a halo (hx, hy), made on first use.
+  struct Peer {
+    int rank;
+    std::vector<int> cols, rows;  // global coarse columns and rows, ascending
+    std::vector<double> buf;
+  };
+  struct Plan {
+    int hx = -1, hy = -1;
+    std::vector<Peer> from, to;  // the tiles this window needs; the windows that need this tile
+    // Window column i: tile column and index among that peer's cols (rows alike).
+    std::vector<int> col_tile, col_pos, row_tile, row_pos;
+    std::vector<int> from_of_tile;  // [tj * px + ti] -> index into from, or -1
+  };
+  void make_plan(int hx, int hy);
+  Plan plan_;
+  long long coarse_messages_ = 0, coarse_bytes_ = 0;
 };
 
 }  // namespace erg::dist

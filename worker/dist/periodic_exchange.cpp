@@ -53,6 +53,20 @@ template void sum_periodic(Field<float>&, int);
 template void fill_periodic(Field<double>&, int);
 template void sum_periodic(Field<double>&, int);
 
+// The whole torus is this tile: the window wraps onto its own cells.
+void PeriodicExchange::coarse_window(const std::vector<double>& mine, int tcnx, int tcny, int hx,
+                                     int hy, std::vector<double>& window) {
+  const int wx = tcnx + 2 * hx, wy = tcny + 2 * hy;
+  window.resize(static_cast<size_t>(wx) * wy);
+  for (int j = 0; j < wy; ++j) {
+    const int sy = ((j - hy) % tcny + tcny) % tcny;
+    for (int i = 0; i < wx; ++i) {
+      const int sx = ((i - hx) % tcnx + tcnx) % tcnx;
+      window[static_cast<size_t>(j) * wx + i] = mine[static_cast<size_t>(sy) * tcnx + sx];
+    }
+  }
+}
+
 // A local copy: the first half of a split fill does it all.
 void PeriodicExchange::ghosts(GhostOp op, std::span<const Ghosts> fields) {
   if (op == GhostOp::kFinishFill) return;

@@ -705,16 +705,23 @@ std::vector<std::string> cross_field_problems(const JobSpec& spec, const std::st
   if (m.shadow_angle_min_deg() >= m.shadow_angle_max_deg())
     out.push_back("model.shadow_angle_min_deg = " + num(m.shadow_angle_min_deg()) +
                   " must be below model.shadow_angle_max_deg = " + num(m.shadow_angle_max_deg()));
-  // The wind-warping coarse grid needs a divisor of each side (model.cpp).
-  const double max_coarse_m =
-      0.25 * 0.5 * std::min(m.warp_large_radius_m(), m.warp_small_radius_m());
-  for (const auto& [name, n] :
-       {std::pair<const char*, long long>{"domain.nx", d.nx()}, {"domain.ny", d.ny()}})
-    if (wind_warping::coarse_factor(static_cast<int>(n), l, max_coarse_m) == 0)
-      out.push_back(
-          std::string(name) + " = " + std::to_string(n) + " has no divisor c with " + name +
-          " / c <= " + std::to_string(wind_warping::kMaxCoarseCells) +
-          " (the coarse grid of the wind warping); choose a size with small prime factors");
+  // The wind-warping coarse cells (stages/wind_warping.h, coarse_factor)
+  // depend on the model's lengths only; each side must hold whole ones.
+  if (l > 0 && m.warp_large_radius_m() > 0 && m.warp_small_radius_m() > 0) {
+    const double max_coarse_m =
+        0.25 * 0.5 * std::min(m.warp_large_radius_m(), m.warp_small_radius_m());
+    const long long c = wind_warping::coarse_factor(l, max_coarse_m);
+    for (const auto& [name, n] :
+         {std::pair<const char*, long long>{"domain.nx", d.nx()}, {"domain.ny", d.ny()}})
+      if (n > 0 && n % c != 0)
+        out.push_back(std::string(name) + " = " + std::to_string(n) +
+                      " is not a multiple of the wind-warping coarse cell, " + std::to_string(c) +
+                      " cells (the largest power of two <= min(model.warp_large_radius_m, "
+                      "model.warp_small_radius_m) / 8 / domain.cell_size_m = " +
+                      num(max_coarse_m / l) + "); allowed " + name + " = multiples of " +
+                      std::to_string(c) + ", e.g. " + std::to_string(std::max(c, n / c * c)) +
+                      " or " + std::to_string((n / c + 1) * c));
+  }
   if (m.warp_large_weight() + m.warp_small_weight() <= 0)
     out.push_back("model.warp_large_weight + model.warp_small_weight = 0; allowed > 0");
 

@@ -10,6 +10,7 @@
 #include "core/units.h"
 #include "job/spec.h"
 #include "sim/simulation.h"
+#include "stages/wind_warping.h"
 #include "wind/physics.h"
 #include "wind/regime.h"
 
@@ -33,8 +34,15 @@ erg::v1::JobSpec flat_bed_job(const erg::v1::JobSpec& spec, double ustar, double
   *j.mutable_model() = spec.model();
   *j.mutable_physics() = spec.physics();
   j.mutable_model()->set_echo_dunes(false);
-  j.mutable_domain()->set_nx(kCells);
-  j.mutable_domain()->set_ny(kCells);
+  // At least one wind-warping coarse cell (wide at very fine cells): the
+  // torus must be a multiple of it (stages/wind_warping.h, coarse_factor).
+  const auto& m = spec.model();
+  const long long cells = std::max<long long>(
+      kCells, wind_warping::coarse_factor(
+                  spec.domain().cell_size_m(),
+                  0.125 * std::min(m.warp_large_radius_m(), m.warp_small_radius_m())));
+  j.mutable_domain()->set_nx(cells);
+  j.mutable_domain()->set_ny(cells);
   j.mutable_domain()->set_cell_size_m(spec.domain().cell_size_m());
   j.mutable_layers()->mutable_bedrock()->set_constant(-kSandDepthM);
   j.mutable_layers()->mutable_sand()->set_constant(kSandDepthM);

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "core/units.h"
 #include "wind/physics.h"
@@ -29,19 +30,14 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
   md.warp.gradient_scale = static_cast<float>(m.warp_gradient_scale());
 
   const int gnx = static_cast<int>(spec.domain().nx()), gny = static_cast<int>(spec.domain().ny());
-  auto& c = md.coarse;
-  // "We use r = 2 sigma" [N24 3.3].
-  c.sigma_m[0] = 0.5 * m.warp_large_radius_m();
-  c.sigma_m[1] = 0.5 * m.warp_small_radius_m();
-  const double max_coarse_m = 0.25 * std::min(c.sigma_m[0], c.sigma_m[1]);
-  c.cx = wind_warping::coarse_factor(gnx, l, max_coarse_m);
-  c.cy = wind_warping::coarse_factor(gny, l, max_coarse_m);
-  if (c.cx == 0 || c.cy == 0)
-    throw std::invalid_argument("domain.nx or domain.ny has no divisor for the coarse wind grid");
-  c.nx = gnx / c.cx;
-  c.ny = gny / c.cy;
-  c.lx_m = gnx * l;
-  c.ly_m = gny * l;
+  // "We use r = 2 sigma" [N24 3.3]. The coarse cells depend on the model's
+  // lengths only; validation makes the domain a multiple of them.
+  md.coarse = wind_warping::coarse_grid(gnx, gny, l, 0.5 * m.warp_large_radius_m(),
+                                        0.5 * m.warp_small_radius_m());
+  if (gnx % md.coarse.cx != 0 || gny % md.coarse.cy != 0)
+    throw std::invalid_argument("domain.nx and domain.ny must be multiples of " +
+                                std::to_string(md.coarse.cx) +
+                                " cells (the coarse grid of the wind warping)");
 
   md.shadow.steps = static_cast<int>(std::ceil(m.shadow_radius_m() / l - 1e-9));
   md.shadow.cell_m = static_cast<float>(l);

@@ -10,14 +10,19 @@
 //
 // The smoothing radii (50-200 m) are far wider than any halo, so it is done on
 // a coarse grid: heights are block-summed exactly (integers) into coarse cells
-// no wider than a quarter of the smallest sigma, convolved by FFT on that
-// periodic coarse grid with the analytic Gaussian transfer function (physical
-// wave numbers, right on non-square domains), differentiated spectrally, and
-// the two gradient fields are bilinearly interpolated back to cell centres.
-// The coarse grid depends only on the domain, never on the tiling, so every
-// tile sees the same smoothed field (docs/design.md, "Tiling").
+// of c x c fine cells, c the largest power of two with c l <= sigma_min / 4
+// (model lengths only, never the domain size: coarse_factor); each tile
+// gets a coarse halo of the cells within the kernels' reach (dist/exchange.h,
+// coarse_window), convolves it with a truncated, normalised, sampled
+// Gaussian of each scale (separable: along y, then along x, every sum in a
+// fixed tap order, in double), takes central differences of the smoothed
+// heights, and interpolates the two gradient fields bilinearly back to cell
+// centres. Every coarse cell is a function of the same coarse values in the
+// same order on any tiling, so the bits do not depend on it
+// (docs/design.md, "Wind warping").
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 
 #include "core/hd.h"
@@ -28,9 +33,14 @@ namespace erg {
 // The coarse grid of the wind-warping smoothing.
 struct CoarseGrid {
   int cx = 1, cy = 1;          // fine cells per coarse cell along x, y
-  int nx = 0, ny = 0;          // coarse cells
-  double lx_m = 0, ly_m = 0;   // domain extent
+  int nx = 0, ny = 0;          // coarse cells of the domain
+  double cell_m = 1;           // fine cell edge l
   double sigma_m[2] = {0, 0};  // Gaussian sigma of the large and small scales
+  // Kernel taps on each side, per scale and axis: ceil(4 sigma / (c l)).
+  int radius_x[2] = {0, 0}, radius_y[2] = {0, 0};
+  // Coarse halo of a tile: the widest kernel, one cell for the central
+  // difference and one for the bilinear interpolation of the tile's edge.
+  int halo_x = 2, halo_y = 2;
 };
 
 }  // namespace erg
@@ -62,68 +72,87 @@ ERG_HD Vec2 warp(Vec2 v, Vec2 grad_large, Vec2 grad_small, const Params& p) {
   return ok ? scale * w : v;
 }
 
-// Gaussian transfer function at physical wave numbers (cycles per metre):
-// FT of exp(-r^2 / 2 sigma^2) normalised to 1 at k = 0.
-ERG_HD double gaussian_transfer(double kx, double ky, double sigma_m) {
-  const double pi2 = 9.869604401089358;  // pi^2
-  return exp(-2.0 * pi2 * sigma_m * sigma_m * (kx * kx + ky * ky));
+// The truncated Gaussian (host): taps w[0 .. 2 r] for offsets -r .. r of
+// coarse cells `delta_m` wide, w_k = exp(-(k delta)^2 / 2 sigma^2) / sum.
+// Truncation at 4 sigma leaves out erfc(4 / sqrt 2) = 6.3e-5 of the mass per
+// axis; renormalised, the smoothed height differs from the untruncated one by
+// at most 2 x 6.3e-5 x (the height range within 4 sigma) per pass
+// (docs/design.md, "Wind warping"). Sums run k = 0 .. 2 r, one order.
+inline constexpr double kTruncationSigmas = 4.0;
+inline int kernel_radius(double sigma_m, double delta_m) {
+  return static_cast<int>(std::ceil(kTruncationSigmas * sigma_m / delta_m - 1e-9));
+}
+inline void gaussian_kernel(double sigma_m, double delta_m, int r, double* w) {
+  double sum = 0;
+  for (int k = -r; k <= r; ++k) {
+    const double x = k * delta_m / sigma_m;
+    w[k + r] = std::exp(-0.5 * x * x);
+    sum += w[k + r];
+  }
+  for (int k = 0; k <= 2 * r; ++k) w[k] /= sum;
+}
+// One output of a 1-D pass: `in` points at the centre tap, `stride` apart.
+ERG_HD double convolve(const double* in, long stride, const double* w, int r) {
+  double s = 0;
+  for (int k = 0; k <= 2 * r; ++k) s += w[k] * in[static_cast<long>(k - r) * stride];
+  return s;
+}
+// The gradient of the smoothed heights by central differences (second
+// order; at >= 4 coarse cells per sigma its relative error is below
+// (delta / sigma)^2 / 6 = 1%).
+ERG_HD float central_difference(double minus, double plus, double delta_m) {
+  return static_cast<float>((plus - minus) / (2.0 * delta_m));
 }
 
-// The spectral Gaussian gradients of the coarse heights, on the half
-// spectrum of a real 2-D transform ([ny][nx / 2 + 1], FFTW's and cuFFT's
-// layout): mode (i, j) at physical wave numbers, j past ny / 2 negative.
-struct WaveNumber {
-  double kx, ky;
+// The smoothing of one tile, as arrays of its coarse window (host and
+// device alike). With tcnx x tcny the tile's coarse cells and hx, hy the
+// halo, the input window is (tcny + 2 hy) rows of (tcnx + 2 hx):
+//   rows   = the smoothed-along-y window: rows -2 .. tcny + 1 of the tile,
+//            every column of the window ((tcny + 4) x (tcnx + 2 hx));
+//   smooth = rows smoothed along x: (tcny + 4) x (tcnx + 4), the tile's
+//            coarse cells -2 .. tcn + 1;
+//   gradient at coarse cells -1 .. tcn: (tcny + 2) x (tcnx + 2).
+struct TileWindow {
+  int tcnx, tcny, hx, hy;
+  ERG_HD int wx() const { return tcnx + 2 * hx; }
+  ERG_HD int wy() const { return tcny + 2 * hy; }
 };
-ERG_HD WaveNumber wave_number(const CoarseGrid& c, int i, int j) {
-  const int mj = j <= c.ny / 2 ? j : j - c.ny;
-  return {i / c.lx_m, mj / c.ly_m};
+// rows[j][i] (j in 0 .. tcny + 3, i in 0 .. wx - 1): along y, at window row
+// j + hy - 2.
+ERG_HD double rows_at(const double* window, TileWindow t, const double* w, int r, int i, int j) {
+  return convolve(window + static_cast<long>(j + t.hy - 2) * t.wx() + i, t.wx(), w, r);
 }
-// The Gaussian of scale s at every mode, times the 1 / n of the unnormalised
-// inverse transform: computed once per run.
-inline void gaussian_table(const CoarseGrid& c, int s, double* out) {
-  const int hx = c.nx / 2 + 1;
-  const double norm = 1.0 / static_cast<double>(static_cast<std::size_t>(c.nx) * c.ny);
-  for (int j = 0; j < c.ny; ++j)
-    for (int i = 0; i < hx; ++i) {
-      const WaveNumber k = wave_number(c, i, j);
-      out[static_cast<std::size_t>(j) * hx + i] =
-          gaussian_transfer(k.kx, k.ky, c.sigma_m[s]) * norm;
-    }
+// smooth[j][i] (j in 0 .. tcny + 3, i in 0 .. tcnx + 3): along x, at window
+// column i + hx - 2.
+ERG_HD double smooth_at(const double* rows, TileWindow t, const double* w, int r, int i, int j) {
+  return convolve(rows + static_cast<long>(j) * t.wx() + i + t.hx - 2, 1, w, r);
 }
-// Mode (i, j) of the spectrum (re, im) times its Gaussian g times the
-// derivative along `axis` (0: x): d/dx <-> 2 pi i k_x. The Nyquist mode of
-// the differentiated axis has no sign and is dropped.
-struct Mode {
-  double re, im;
-};
-ERG_HD Mode gradient_mode(const CoarseGrid& c, int i, int j, int axis, double re, double im,
-                          double g) {
-  const double two_pi = 6.283185307179586;
-  const WaveNumber k = wave_number(c, i, j);
-  const double factor = two_pi * (axis == 0 ? k.kx : k.ky);
-  const bool nyquist =
-      axis == 0 ? (c.nx % 2 == 0) && i == c.nx / 2 : (c.ny % 2 == 0) && j == c.ny / 2;
-  const double a = re * g, b = im * g;
-  // (a + i b) * (i factor) = -b factor + i a factor
-  return {nyquist ? 0.0 : -b * factor, nyquist ? 0.0 : a * factor};
+// The gradient at gradient cell (i, j), i.e. the tile's coarse cell
+// (i - 1, j - 1).
+ERG_HD Vec2 gradient_at(const double* smooth, TileWindow t, double dx_m, double dy_m, int i,
+                        int j) {
+  const long sx = t.tcnx + 4;
+  const double* c = smooth + static_cast<long>(j + 1) * sx + (i + 1);
+  return {central_difference(c[-1], c[1], dx_m), central_difference(c[-sx], c[sx], dy_m)};
 }
 
-// Bilinear interpolation of a periodic coarse field at fine cell centres.
+// Bilinear interpolation of a tile's coarse gradients at fine cell centres.
 // Coarse cell I covers fine cells [I*c, (I+1)*c) along an axis, centred at
-// (I + 0.5) c. Along one axis, fine cell g falls between coarse centres i0
-// and i1 with weight t towards i1; this depends only on the column (or row),
-// so the CPU computes it once per tile and the GPU per cell, with this code.
+// (I + 0.5) c. Along one axis, global fine cell g falls between coarse
+// centres i0 and i1 with weight t towards i1; the weight is computed from
+// the global index (the same bits on any tiling), the indices are those of
+// the tile's gradient arrays (its coarse cells -1 .. tcn, so index I - I0 + 1
+// for the tile's first coarse cell I0). This depends only on the column (or
+// row), so the CPU computes it once per tile and the GPU per cell.
 struct Axis {
-  int i0, i1;  // coarse indices, wrapped
+  int i0, i1;  // indices into the tile's gradient arrays
   float t;     // weight of i1
 };
-ERG_HD Axis coarse_axis(int g, int c, int n) {
+ERG_HD Axis coarse_axis(int g, int c, int first_coarse) {
   const float f = (static_cast<float>(g) + 0.5f) / static_cast<float>(c) - 0.5f;
   const float f0 = floorf(f);
-  int i0 = static_cast<int>(f0);
-  i0 = (i0 % n + n) % n;
-  return {i0, (i0 + 1) % n, f - f0};
+  const int i0 = static_cast<int>(f0) - first_coarse + 1;
+  return {i0, i0 + 1, f - f0};
 }
 // Interpolate along y first (between two coarse rows, at column i), then
 // along x. The CPU does the first part once per row of cells.
@@ -136,27 +165,37 @@ ERG_HD float lerp_columns(float at_i0, float at_i1, Axis ax) {
 ERG_HD float sample_at(const float* coarse, int nx, Axis ax, Axis ay) {
   return lerp_columns(lerp_rows(coarse, nx, ay, ax.i0), lerp_rows(coarse, nx, ay, ax.i1), ax);
 }
-// The same, at global fine cell (gx, gy) of a coarse grid cnx x cny with
-// cx x cy fine cells per coarse cell.
-ERG_HD float sample_coarse(const float* coarse, int cnx, int cny, int cx, int cy, int gx, int gy) {
-  return sample_at(coarse, cnx, coarse_axis(gx, cx, cnx), coarse_axis(gy, cy, cny));
+
+// The coarse factor (host): the largest power of two c with c l <= max_m (a
+// quarter of the smaller sigma), at least 1. It depends only on the model's
+// lengths and the cell size, never on the domain, so a terrain gives the
+// same wind on any torus it tiles; the domain's sides must be multiples of
+// it (job validation says so, naming the allowed sizes).
+inline int coarse_factor(double cell_m, double max_m) {
+  int c = 1;
+  while (2.0 * c * cell_m <= max_m && c < (1 << 20)) c *= 2;
+  return c;
 }
 
-// The coarse grid (host). Coarse factor along one axis: the largest divisor
-// c of n whose coarse cells are at most `max_m` wide (a quarter of the smaller
-// sigma) with at most kMaxCoarseCells coarse cells; on huge domains, the
-// smallest divisor that keeps the grid that small, which widens the smallest
-// smoothing a little (README, "Scaling"). 0 when no divisor works (n prime
-// and larger than kMaxCoarseCells).
-inline constexpr int kMaxCoarseCells = 2048;
-inline int coarse_factor(int n, double cell_m, double max_m) {
-  int best = 0;
-  for (int c = 1; c <= n; ++c)
-    if (n % c == 0 && c * cell_m <= max_m && n / c <= kMaxCoarseCells) best = c;
-  if (best > 0) return best;
-  for (int c = 1; c <= n; ++c)
-    if (n % c == 0 && n / c <= kMaxCoarseCells) return n / c >= 2 ? c : 0;
-  return 0;
+// The coarse grid of a domain (host): factors, kernel radii and halo.
+inline CoarseGrid coarse_grid(int gnx, int gny, double cell_m, double sigma_large_m,
+                              double sigma_small_m) {
+  CoarseGrid c;
+  c.sigma_m[0] = sigma_large_m;
+  c.sigma_m[1] = sigma_small_m;
+  c.cell_m = cell_m;
+  c.cx = c.cy =
+      coarse_factor(cell_m, 0.25 * (sigma_large_m < sigma_small_m ? sigma_large_m : sigma_small_m));
+  c.nx = gnx / c.cx;
+  c.ny = gny / c.cy;
+  c.halo_x = c.halo_y = 0;
+  for (int s = 0; s < 2; ++s) {
+    c.radius_x[s] = kernel_radius(c.sigma_m[s], c.cx * cell_m);
+    c.radius_y[s] = kernel_radius(c.sigma_m[s], c.cy * cell_m);
+    c.halo_x = c.radius_x[s] + 2 > c.halo_x ? c.radius_x[s] + 2 : c.halo_x;
+    c.halo_y = c.radius_y[s] + 2 > c.halo_y ? c.radius_y[s] + 2 : c.halo_y;
+  }
+  return c;
 }
 
 }  // namespace erg::wind_warping

@@ -15,7 +15,7 @@ CpuBackend::CpuBackend(const Model& model, int threads, dist::Exchange& ex)
       g_(model.tile),
       threads_(threads > 0 ? threads : omp_get_max_threads()),
       ex_(ex),
-      smoother_(model.coarse) {
+      smoother_(model.coarse, model.tile.nx / model.coarse.cx, model.tile.ny / model.coarse.cy) {
   fields::each([&](fields::Id id, const fields::Info& f) {
     if (f.type == fields::Type::kUnits)
       units(id).reset(g_, static_cast<units_t>(f.initial));
@@ -26,7 +26,6 @@ CpuBackend::CpuBackend(const Model& model, int threads, dist::Exchange& ex)
   sand_next_.reset(g_);
   h_a_.reset(g_);
   frac_.reset(g_);
-  coarse_h_.assign(static_cast<size_t>(m_.coarse.nx) * m_.coarse.ny, 0.0);
 }
 
 void CpuBackend::upload(const TileState& s) {

@@ -4,8 +4,6 @@
 // count (docs/design.md, "Exactness"); inner loops are written to vectorise.
 #pragma once
 
-#include <fftw3.h>
-
 #include <vector>
 
 #include "backend/backend.h"
@@ -15,26 +13,26 @@
 
 namespace erg::cpu {
 
-// Gaussian smoothing and gradients on the periodic coarse grid (FFTW, double,
-// FFTW_ESTIMATE plans so the algorithm never changes between runs).
+// Gaussian smoothing and gradients of one tile's coarse window
+// (stages/wind_warping.h: truncated Gaussians, separable, central
+// differences), double.
 class CoarseSmoother {
  public:
-  explicit CoarseSmoother(const CoarseGrid& c);
-  ~CoarseSmoother();
-  CoarseSmoother(const CoarseSmoother&) = delete;
-  CoarseSmoother& operator=(const CoarseSmoother&) = delete;
-  // heights: coarse mean heights (metres), [ny][nx]. Fills grad_x[s], grad_y[s]
-  // for scale s (0 large, 1 small) as float [ny][nx].
-  void gradients(const std::vector<double>& heights, std::vector<float> grad_x[2],
-                 std::vector<float> grad_y[2]);
+  // tcnx x tcny: the tile's coarse cells.
+  CoarseSmoother(const CoarseGrid& c, int tcnx, int tcny);
+  // window: the coarse mean heights (metres) of the tile and its coarse halo
+  // (Exchange::coarse_window). Fills grad_x[s], grad_y[s] for scale s (0
+  // large, 1 small) as float [tcny + 2][tcnx + 2], the tile's coarse cells
+  // -1 .. tcn.
+  void gradients(const std::vector<double>& window, std::vector<float> grad_x[2],
+                 std::vector<float> grad_y[2], int threads);
+  wind_warping::TileWindow tile() const { return t_; }
 
  private:
   CoarseGrid c_;
-  double* real_ = nullptr;
-  fftw_complex* spectrum_ = nullptr;
-  fftw_complex* work_ = nullptr;
-  fftw_plan forward_{}, inverse_{};
-  std::vector<double> gauss_[2];  // wind_warping::gaussian_table of each scale
+  wind_warping::TileWindow t_;
+  std::vector<double> kx_[2], ky_[2];        // wind_warping::gaussian_kernel per scale and axis
+  std::vector<double> rows_[2], smooth_[2];  // the passes along y and along x, per scale
 };
 
 class CpuBackend final : public Backend {
@@ -91,7 +89,7 @@ class CpuBackend final : public Backend {
   Field<float> h_a_, frac_;
   // wind warping
   CoarseSmoother smoother_;
-  std::vector<double> coarse_mine_, coarse_h_;  // this tile's coarse cells, all of them
+  std::vector<double> coarse_mine_, window_;  // this tile's coarse cells, with their halo
   std::vector<float> grad_x_[2], grad_y_[2];
   // Coarse interpolation stencils: per column (as arrays) and per row.
   std::vector<int> axis_x_i0_, axis_x_i1_;

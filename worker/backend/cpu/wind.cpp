@@ -14,49 +14,86 @@
 
 namespace erg::cpu {
 
-CoarseSmoother::CoarseSmoother(const CoarseGrid& c) : c_(c) {
-  const size_t n = static_cast<size_t>(c.nx) * c.ny;
-  const size_t nc = static_cast<size_t>(c.nx / 2 + 1) * c.ny;
-  real_ = fftw_alloc_real(n);
-  spectrum_ = fftw_alloc_complex(nc);
-  work_ = fftw_alloc_complex(nc);
-  // FFTW's planner is not thread-safe; plans are made once, here.
-  forward_ = fftw_plan_dft_r2c_2d(c.ny, c.nx, real_, spectrum_, FFTW_ESTIMATE);
-  inverse_ = fftw_plan_dft_c2r_2d(c.ny, c.nx, work_, real_, FFTW_ESTIMATE);
+CoarseSmoother::CoarseSmoother(const CoarseGrid& c, int tcnx, int tcny)
+    : c_(c), t_{tcnx, tcny, c.halo_x, c.halo_y} {
   for (int s = 0; s < 2; ++s) {
-    gauss_[s].resize(nc);
-    wind_warping::gaussian_table(c, s, gauss_[s].data());
+    kx_[s].resize(2 * static_cast<size_t>(c.radius_x[s]) + 1);
+    ky_[s].resize(2 * static_cast<size_t>(c.radius_y[s]) + 1);
+    wind_warping::gaussian_kernel(c.sigma_m[s], c.cx * c.cell_m, c.radius_x[s], kx_[s].data());
+    wind_warping::gaussian_kernel(c.sigma_m[s], c.cy * c.cell_m, c.radius_y[s], ky_[s].data());
   }
 }
 
-CoarseSmoother::~CoarseSmoother() {
-  fftw_destroy_plan(forward_);
-  fftw_destroy_plan(inverse_);
-  fftw_free(real_);
-  fftw_free(spectrum_);
-  fftw_free(work_);
-}
-
-void CoarseSmoother::gradients(const std::vector<double>& heights, std::vector<float> grad_x[2],
-                               std::vector<float> grad_y[2]) {
-  const int nx = c_.nx, ny = c_.ny, hx = nx / 2 + 1;
-  const size_t n = static_cast<size_t>(nx) * ny;
-  std::copy(heights.begin(), heights.end(), real_);
-  fftw_execute(forward_);
+// The passes of wind_warping::rows_at, smooth_at and gradient_at, with the
+// taps in the outer loop and the cells in the inner one so that it
+// vectorises: every output still sums w[0] x[0] + w[1] x[1] + ... from 0, in
+// that order (no contraction: -ffp-contract=off), so the bits are those of
+// wind_warping::convolve.
+void CoarseSmoother::gradients(const std::vector<double>& window, std::vector<float> grad_x[2],
+                               std::vector<float> grad_y[2], int threads) {
+  const wind_warping::TileWindow t = t_;
+  const int wx = t.wx(), sx = t.tcnx + 4, rows = t.tcny + 4;
+  const int gnx = t.tcnx + 2, gny = t.tcny + 2;
+  const double dx = c_.cx * c_.cell_m, dy = c_.cy * c_.cell_m;
   for (int s = 0; s < 2; ++s) {
-    for (int axis = 0; axis < 2; ++axis) {
-      for (int j = 0; j < ny; ++j)
-        for (int i = 0; i < hx; ++i) {
-          const size_t k = static_cast<size_t>(j) * hx + i;
-          const wind_warping::Mode m = wind_warping::gradient_mode(c_, i, j, axis, spectrum_[k][0],
-                                                                   spectrum_[k][1], gauss_[s][k]);
-          work_[k][0] = m.re;
-          work_[k][1] = m.im;
+    rows_[s].resize(static_cast<size_t>(rows) * wx);
+    smooth_[s].resize(static_cast<size_t>(rows) * sx);
+    grad_x[s].resize(static_cast<size_t>(gnx) * gny);
+    grad_y[s].resize(static_cast<size_t>(gnx) * gny);
+  }
+  // In blocks of rows and strips of columns, so that the 2 r + 1 input rows
+  // a strip reads stay in cache from one output row to the next (each
+  // output's taps still run k = 0 .. 2 r). Both scales in each pass: one
+  // parallel region, three barriers.
+  constexpr int kRowBlock = 16, kStrip = 64;
+  const int blocks = (rows + kRowBlock - 1) / kRowBlock;
+#pragma omp parallel num_threads(threads)
+  {
+#pragma omp for schedule(static)
+    for (int sb = 0; sb < 2 * blocks; ++sb) {
+      const int s = sb / blocks, jb = (sb % blocks) * kRowBlock;
+      const int rx = c_.radius_x[s], ry = c_.radius_y[s];
+      const double* wy = ky_[s].data();
+      // Along y, only at the columns the pass along x reads.
+      const int i0 = t.hx - 2 - rx, i1 = t.hx + t.tcnx + 2 + rx;
+      for (int ib = i0; ib < i1; ib += kStrip) {
+        const int n = ib + kStrip < i1 ? kStrip : i1 - ib;
+        for (int j = jb; j < jb + kRowBlock && j < rows; ++j) {
+          double acc[kStrip];
+          for (int i = 0; i < n; ++i) acc[i] = 0.0;
+          for (int k = 0; k <= 2 * ry; ++k) {
+            const double w = wy[k];
+            const double* __restrict in =
+                window.data() + static_cast<size_t>(j + t.hy - 2 - ry + k) * wx + ib;
+            for (int i = 0; i < n; ++i) acc[i] += w * in[i];
+          }
+          double* __restrict out = rows_[s].data() + static_cast<size_t>(j) * wx + ib;
+          for (int i = 0; i < n; ++i) out[i] = acc[i];
         }
-      fftw_execute(inverse_);
-      std::vector<float>& out = axis == 0 ? grad_x[s] : grad_y[s];
-      out.resize(n);
-      for (size_t k = 0; k < n; ++k) out[k] = static_cast<float>(real_[k]);
+      }
+    }
+#pragma omp for schedule(static)
+    for (int sj = 0; sj < 2 * rows; ++sj) {
+      const int s = sj / rows, j = sj % rows;
+      const int rx = c_.radius_x[s];
+      const double* wxk = kx_[s].data();
+      double* __restrict out = smooth_[s].data() + static_cast<size_t>(j) * sx;
+      for (int i = 0; i < sx; ++i) out[i] = 0.0;
+      const double* row = rows_[s].data() + static_cast<size_t>(j) * wx + (t.hx - 2 - rx);
+      for (int k = 0; k <= 2 * rx; ++k) {
+        const double w = wxk[k];
+        const double* __restrict in = row + k;
+        for (int i = 0; i < sx; ++i) out[i] += w * in[i];
+      }
+    }
+#pragma omp for schedule(static)
+    for (int sj = 0; sj < 2 * gny; ++sj) {
+      const int s = sj / gny, j = sj % gny;
+      for (int i = 0; i < gnx; ++i) {
+        const Vec2 g = wind_warping::gradient_at(smooth_[s].data(), t, dx, dy, i, j);
+        grad_x[s][static_cast<size_t>(j) * gnx + i] = g.x;
+        grad_y[s][static_cast<size_t>(j) * gnx + i] = g.y;
+      }
     }
   }
 }
@@ -119,34 +156,36 @@ void CpuBackend::heights() {
 // Reads no ghosts: the heights' exchange may run meanwhile (Simulation::step).
 void CpuBackend::wind(Vec2 a) {
   const CoarseGrid& c = m_.coarse;
-  ex_.gather_coarse(coarse_mine_, coarse_h_);
-  smoother_.gradients(coarse_h_, grad_x_, grad_y_);
+  const wind_warping::TileWindow t = smoother_.tile();
+  ex_.coarse_window(coarse_mine_, t.tcnx, t.tcny, t.hx, t.hy, window_);
+  smoother_.gradients(window_, grad_x_, grad_y_, threads_);
 
   const float k = m_.venturi_k;
   const wind_warping::Params wp = m_.warp;
+  const int gnx = t.tcnx + 2;  // the gradient arrays' width
   // Interpolation stencils depend only on the column or the row.
   if (axis_y_.empty()) {
     for (int x = 0; x < g_.nx; ++x) {
-      const wind_warping::Axis ax = wind_warping::coarse_axis(g_.x0 + x, c.cx, c.nx);
+      const wind_warping::Axis ax = wind_warping::coarse_axis(g_.x0 + x, c.cx, g_.x0 / c.cx);
       axis_x_i0_.push_back(ax.i0);  // structure of arrays: gathers vectorise
       axis_x_i1_.push_back(ax.i1);
       axis_x_t_.push_back(ax.t);
     }
     for (int y = 0; y < g_.ny; ++y)
-      axis_y_.push_back(wind_warping::coarse_axis(g_.y0 + y, c.cy, c.ny));
+      axis_y_.push_back(wind_warping::coarse_axis(g_.y0 + y, c.cy, g_.y0 / c.cy));
   }
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y) {
     const wind_warping::Axis ay = axis_y_[static_cast<size_t>(y)];
-    std::vector<float> rows(4 * static_cast<size_t>(c.nx));
+    std::vector<float> rows(4 * static_cast<size_t>(gnx));
     const std::vector<float>* fields[4] = {&grad_x_[0], &grad_y_[0], &grad_x_[1], &grad_y_[1]};
     for (int f = 0; f < 4; ++f)
-      for (int i = 0; i < c.nx; ++i)
-        rows[static_cast<size_t>(f) * c.nx + i] =
-            wind_warping::lerp_rows(fields[f]->data(), c.nx, ay, i);
+      for (int i = 0; i < gnx; ++i)
+        rows[static_cast<size_t>(f) * gnx + i] =
+            wind_warping::lerp_rows(fields[f]->data(), gnx, ay, i);
     warp_row(f_.height_m.row(y), f_.wind_x.row(y), f_.wind_y.row(y), g_.nx, a, k, wp,
-             axis_x_i0_.data(), axis_x_i1_.data(), axis_x_t_.data(), rows.data(),
-             rows.data() + c.nx, rows.data() + 2 * c.nx, rows.data() + 3 * c.nx);
+             axis_x_i0_.data(), axis_x_i1_.data(), axis_x_t_.data(), rows.data(), rows.data() + gnx,
+             rows.data() + 2 * gnx, rows.data() + 3 * gnx);
   }
 }
 

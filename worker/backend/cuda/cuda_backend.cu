@@ -23,61 +23,9 @@ void fail(const char* what, const char* detail) {
   throw std::runtime_error(std::string("CUDA backend: ") + what + " failed: " + detail);
 }
 
-namespace {
-const char* cufft_error_name(cufftResult r) {
-  switch (r) {
-    case CUFFT_SUCCESS:
-      return "CUFFT_SUCCESS";
-    case CUFFT_INVALID_PLAN:
-      return "CUFFT_INVALID_PLAN";
-    case CUFFT_ALLOC_FAILED:
-      return "CUFFT_ALLOC_FAILED";
-    case CUFFT_INVALID_TYPE:
-      return "CUFFT_INVALID_TYPE";
-    case CUFFT_INVALID_VALUE:
-      return "CUFFT_INVALID_VALUE";
-    case CUFFT_INTERNAL_ERROR:
-      return "CUFFT_INTERNAL_ERROR";
-    case CUFFT_EXEC_FAILED:
-      return "CUFFT_EXEC_FAILED";
-    case CUFFT_SETUP_FAILED:
-      return "CUFFT_SETUP_FAILED";
-    case CUFFT_INVALID_SIZE:
-      return "CUFFT_INVALID_SIZE";
-    case CUFFT_UNALIGNED_DATA:
-      return "CUFFT_UNALIGNED_DATA";
-    case CUFFT_INVALID_DEVICE:
-      return "CUFFT_INVALID_DEVICE";
-    case CUFFT_NO_WORKSPACE:
-      return "CUFFT_NO_WORKSPACE";
-    case CUFFT_NOT_IMPLEMENTED:
-      return "CUFFT_NOT_IMPLEMENTED";
-    case CUFFT_NOT_SUPPORTED:
-      return "CUFFT_NOT_SUPPORTED";
-    default:
-      return "cuFFT error";
-  }
-}
-}  // namespace
-
-void check_cufft(cufftResult r, const char* what) {
-  if (r != CUFFT_SUCCESS) {
-    const std::string detail =
-        std::string(cufft_error_name(r)) + " (" + std::to_string(static_cast<int>(r)) + ")";
-    fail(what, detail.c_str());
-  }
-}
-
 void check_launch(const char* kernel) {
   const cudaError_t e = cudaGetLastError();
   if (e != cudaSuccess) fail((std::string("launch of ") + kernel).c_str(), cudaGetErrorString(e));
-}
-
-void FftPlan::make_2d(int rows, int cols, cufftType type) {
-  if (made_) ERG_CUFFT_CHECK(cufftDestroy(h_));
-  made_ = false;
-  ERG_CUFFT_CHECK(cufftPlan2d(&h_, rows, cols, type));
-  made_ = true;
 }
 
 // ---- periodic halos -------------------------------------------------------------
@@ -261,27 +209,28 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
   moved_.reset(
       2 * static_cast<std::size_t>(std::max({m_.avalanche_iterations, m_.bedrock_iterations, 1})));
 
-  // Coarse grid of the wind warping: buffers, plans (made once, here) and the
-  // Gaussian transfer per spectral coefficient, evaluated on the host by the
-  // same function and expressions as cpu::CoarseSmoother.
+  // Coarse grid of the wind warping: buffers and the Gaussian taps, made on
+  // the host by the same function as the CPU's (wind_warping::gaussian_kernel).
   const CoarseGrid& c = m_.coarse;
-  const int hx = c.nx / 2 + 1;
-  const std::size_t cn = static_cast<std::size_t>(c.nx) * c.ny;
-  const std::size_t nc = static_cast<std::size_t>(hx) * c.ny;
-  coarse_h_.reset(cn);
-  spectrum_.reset(nc);
-  work_.reset(nc);
+  tw_ = {g_.nx / c.cx, g_.ny / c.cy, c.halo_x, c.halo_y};
+  window_.reset(static_cast<std::size_t>(tw_.wx()) * tw_.wy());
+  rows_.reset(static_cast<std::size_t>(tw_.tcny + 4) * tw_.wx());
+  smooth_.reset(static_cast<std::size_t>(tw_.tcny + 4) * (tw_.tcnx + 4));
+  const std::size_t gn = static_cast<std::size_t>(tw_.tcnx + 2) * (tw_.tcny + 2);
   for (int s = 0; s < 2; ++s) {
-    grad_x_[s].reset(cn);
-    grad_y_[s].reset(cn);
-    gauss_[s].reset(nc);
-    std::vector<double> gauss(nc);
-    wind_warping::gaussian_table(c, s, gauss.data());
-    ERG_CUDA_CHECK(
-        cudaMemcpy(gauss_[s].get(), gauss.data(), nc * sizeof(double), cudaMemcpyHostToDevice));
+    grad_x_[s].reset(gn);
+    grad_y_[s].reset(gn);
+    for (int axis = 0; axis < 2; ++axis) {
+      const int r = axis == 0 ? c.radius_x[s] : c.radius_y[s];
+      std::vector<double> w(2 * static_cast<std::size_t>(r) + 1);
+      wind_warping::gaussian_kernel(c.sigma_m[s], (axis == 0 ? c.cx : c.cy) * c.cell_m, r,
+                                    w.data());
+      DeviceBuffer<double>& d = axis == 0 ? kx_[s] : ky_[s];
+      d.reset(w.size());
+      ERG_CUDA_CHECK(
+          cudaMemcpy(d.get(), w.data(), w.size() * sizeof(double), cudaMemcpyHostToDevice));
+    }
   }
-  forward_.make_2d(c.ny, c.nx, CUFFT_D2Z);
-  inverse_.make_2d(c.ny, c.nx, CUFFT_Z2D);
 
   row_sums_.reset(3 * static_cast<std::size_t>(g_.ny));
   host_rows_.assign(3 * static_cast<std::size_t>(g_.ny), 0);

@@ -2,8 +2,7 @@
 // The CUDA backend: the same stages, in the same order, over the same padded
 // fields as the CPU backend (backend/cpu), one thread per cell. Every formula
 // is a call into stages/ (shared with the CPU); the code here only allocates
-// device memory, fills and folds halos, launches kernels and runs the cuFFT
-// plans of the wind-warping smoothing. Scatters use 64-bit integer atomics
+// device memory, fills and folds halos and launches kernels. Scatters use 64-bit integer atomics
 // (exact and order-independent); reductions are integer sums, so results do
 // not depend on the launch configuration (docs/design.md, "Exactness").
 //
@@ -11,7 +10,6 @@
 #pragma once
 
 #include <cuda_runtime.h>
-#include <cufft.h>
 
 #include <cstddef>
 #include <limits>
@@ -24,6 +22,7 @@
 #include "core/grid.h"
 #include "core/units.h"
 #include "dist/halo_frame.h"
+#include "stages/wind_warping.h"
 
 namespace erg::gpu {
 
@@ -34,12 +33,10 @@ namespace erg::gpu {
 inline void check(cudaError_t e, const char* what) {
   if (e != cudaSuccess) fail(what, cudaGetErrorString(e));
 }
-void check_cufft(cufftResult r, const char* what);
 // After a kernel launch: reports launch errors (and earlier asynchronous ones).
 void check_launch(const char* kernel);
 
 #define ERG_CUDA_CHECK(call) ::erg::gpu::check((call), #call)
-#define ERG_CUFFT_CHECK(call) ::erg::gpu::check_cufft((call), #call)
 // kernel<<<grid, block>>>(args...) followed by a launch check naming it.
 #define ERG_LAUNCH(kernel, grid, block, ...)  \
   do {                                        \
@@ -111,24 +108,6 @@ class PinnedBuffer {
  private:
   void* p_ = nullptr;
   std::size_t n_ = 0;
-};
-
-// A cuFFT plan, destroyed with its owner.
-class FftPlan {
- public:
-  FftPlan() = default;
-  ~FftPlan() {
-    if (made_) cufftDestroy(h_);
-  }
-  FftPlan(const FftPlan&) = delete;
-  FftPlan& operator=(const FftPlan&) = delete;
-  // rows x cols, row-major (cufftPlan2d's nx is the slow dimension).
-  void make_2d(int rows, int cols, cufftType type);
-  cufftHandle get() const { return h_; }
-
- private:
-  cufftHandle h_ = 0;
-  bool made_ = false;
 };
 
 // ---- launch geometry --------------------------------------------------------
@@ -251,7 +230,7 @@ class CudaBackend final : public Backend {
   // `settled` (if given): the last iteration found no donor on this tile.
   int avalanche(bool bedrock, int iterations, const Refill& refill,
                 bool* settled = nullptr);  // avalanching.cu
-  void coarse_gradients();                 // wind.cu: coarse_h_ -> grad_x_, grad_y_
+  void coarse_gradients();                 // wind.cu: window_ -> grad_x_, grad_y_
   // Per-row partial sums: copy the first `count` of row_sums_ to the host,
   // then add host_rows_[first, first + count) in a fixed order.
   void fetch_rows(int count);
@@ -293,13 +272,13 @@ class CudaBackend final : public Backend {
   DeviceBuffer<int> flag_;            // the yes/no of obstacles_changed's reduction
   DeviceBuffer<int> abraded_;         // set by saltation's impact when it abraded bedrock
   DeviceBuffer<int> moved_;           // two flags per avalanching iteration (avalanching.cu)
-  // wind warping on the coarse grid
-  DeviceBuffer<double> coarse_h_;              // [ny][nx] real input/output of the FFTs
-  DeviceBuffer<cufftDoubleComplex> spectrum_;  // [ny][nx/2+1]
-  DeviceBuffer<cufftDoubleComplex> work_;      // spectrum times transfer, Z2D input
-  DeviceBuffer<double> gauss_[2];              // Gaussian transfer * 1/(nx ny), per scale
-  DeviceBuffer<float> grad_x_[2], grad_y_[2];  // [ny][nx], scale 0 large, 1 small
-  FftPlan forward_, inverse_;
+  // wind warping on the coarse grid (stages/wind_warping.h, TileWindow)
+  wind_warping::TileWindow tw_{};
+  std::vector<double> window_host_;            // Exchange::coarse_window's output
+  DeviceBuffer<double> window_;                // the tile's coarse cells and halo
+  DeviceBuffer<double> rows_, smooth_;         // the passes along y and along x
+  DeviceBuffer<double> kx_[2], ky_[2];         // Gaussian taps per scale and axis
+  DeviceBuffer<float> grad_x_[2], grad_y_[2];  // [tcny + 2][tcnx + 2], scale 0 large, 1 small
   // reductions and downloads
   DeviceBuffer<total_t> row_sums_;  // 3 ny
   std::vector<total_t> host_rows_;

@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 // Surface wind on the GPU: venturi and multi-scale warping
 // (stages/venturi.h, stages/wind_warping.h), as backend/cpu/wind.cpp:
-// heights in metres, exact coarse block sums, spectral Gaussian gradients on
-// the coarse grid (cuFFT, double), then the per-cell wind; then the local
-// wind primitives (stages/wind_primitives.h).
+// heights in metres, exact coarse block sums, the tile's coarse window
+// (Exchange::coarse_window), truncated Gaussians along y then x and central
+// differences on it (double, the CPU's bits), then the per-cell wind; then
+// the local wind primitives (stages/wind_primitives.h).
 #include <vector>
 
 #include "backend/cuda/cuda_backend.h"
@@ -48,27 +49,39 @@ __global__ void coarse_sum_kernel(TileGeom g, CoarseGrid c, int tile_cnx, const 
         static_cast<double>(sum) * kUnitM / (static_cast<double>(c.cx) * c.cy);
 }
 
-// Spectrum times the Gaussian (normalisation folded in) times the spectral
-// derivative along `axis`, into `work`, exactly as cpu::CoarseSmoother: physical
-// wave numbers, the Nyquist mode of the differentiated axis dropped.
-__global__ void spectral_gradient_kernel(CoarseGrid c, const cufftDoubleComplex* spectrum,
-                                         const double* gauss, cufftDoubleComplex* work, int axis) {
-  const int hx = c.nx / 2 + 1;
+// The pass along y at every (column, row) of `rows`, i.e. wind_warping::rows_at.
+__global__ void rows_kernel(wind_warping::TileWindow t, const double* window, const double* w,
+                            int r, double* rows) {
   const std::size_t k = flat_index();
-  if (k >= static_cast<std::size_t>(hx) * c.ny) return;
-  const int j = static_cast<int>(k / hx), i = static_cast<int>(k % hx);
-  const wind_warping::Mode m =
-      wind_warping::gradient_mode(c, i, j, axis, spectrum[k].x, spectrum[k].y, gauss[k]);
-  work[k].x = m.re;
-  work[k].y = m.im;
+  const int wx = t.wx();
+  if (k >= static_cast<std::size_t>(t.tcny + 4) * wx) return;
+  const int j = static_cast<int>(k / wx), i = static_cast<int>(k % wx);
+  rows[k] = wind_warping::rows_at(window, t, w, r, i, j);
 }
 
-__global__ void to_float_kernel(const double* in, float* out, std::size_t n) {
+// The pass along x: wind_warping::smooth_at.
+__global__ void smooth_kernel(wind_warping::TileWindow t, const double* rows, const double* w,
+                              int r, double* smooth) {
   const std::size_t k = flat_index();
-  if (k < n) out[k] = static_cast<float>(in[k]);
+  const int sx = t.tcnx + 4;
+  if (k >= static_cast<std::size_t>(t.tcny + 4) * sx) return;
+  const int j = static_cast<int>(k / sx), i = static_cast<int>(k % sx);
+  smooth[k] = wind_warping::smooth_at(rows, t, w, r, i, j);
 }
 
-__global__ void wind_kernel(TileGeom g, CoarseGrid c, Vec2 a, float venturi_k,
+// Central differences: wind_warping::gradient_at.
+__global__ void gradient_kernel(wind_warping::TileWindow t, const double* smooth, double dx_m,
+                                double dy_m, float* gx, float* gy) {
+  const std::size_t k = flat_index();
+  const int n = t.tcnx + 2;
+  if (k >= static_cast<std::size_t>(t.tcny + 2) * n) return;
+  const int j = static_cast<int>(k / n), i = static_cast<int>(k % n);
+  const Vec2 g = wind_warping::gradient_at(smooth, t, dx_m, dy_m, i, j);
+  gx[k] = g.x;
+  gy[k] = g.y;
+}
+
+__global__ void wind_kernel(TileGeom g, CoarseGrid c, int gnx, Vec2 a, float venturi_k,
                             wind_warping::Params wp, const float* h, const float* gx0,
                             const float* gy0, const float* gx1, const float* gy1, float* wind_x,
                             float* wind_y) {
@@ -77,10 +90,13 @@ __global__ void wind_kernel(TileGeom g, CoarseGrid c, Vec2 a, float venturi_k,
   const std::size_t i = g.at(x, y);
   const int gx = g.x0 + x, gy = g.y0 + y;
   const Vec2 v = venturi::wind(a, h[i], venturi_k);
-  const Vec2 gl{wind_warping::sample_coarse(gx0, c.nx, c.ny, c.cx, c.cy, gx, gy),
-                wind_warping::sample_coarse(gy0, c.nx, c.ny, c.cx, c.cy, gx, gy)};
-  const Vec2 gs{wind_warping::sample_coarse(gx1, c.nx, c.ny, c.cx, c.cy, gx, gy),
-                wind_warping::sample_coarse(gy1, c.nx, c.ny, c.cx, c.cy, gx, gy)};
+  // The tile's gradient arrays, gnx wide (coarse cells -1 .. tcnx).
+  const wind_warping::Axis ax = wind_warping::coarse_axis(gx, c.cx, g.x0 / c.cx);
+  const wind_warping::Axis ay = wind_warping::coarse_axis(gy, c.cy, g.y0 / c.cy);
+  const Vec2 gl{wind_warping::sample_at(gx0, gnx, ax, ay),
+                wind_warping::sample_at(gy0, gnx, ax, ay)};
+  const Vec2 gs{wind_warping::sample_at(gx1, gnx, ax, ay),
+                wind_warping::sample_at(gy1, gnx, ax, ay)};
   const Vec2 w = wind_warping::warp(v, gl, gs, wp);
   wind_x[i] = w.x;
   wind_y[i] = w.y;
@@ -107,19 +123,17 @@ void CudaBackend::perturb_wind(const std::vector<wind_primitives::Batch>& batche
 
 void CudaBackend::coarse_gradients() {
   const CoarseGrid& c = m_.coarse;
-  const std::size_t n = static_cast<std::size_t>(c.nx) * c.ny;
-  const std::size_t nc = static_cast<std::size_t>(c.nx / 2 + 1) * c.ny;
-  ERG_CUFFT_CHECK(cufftExecD2Z(forward_.get(), coarse_h_.get(), spectrum_.get()));
-  const Launch ls = flat(nc), lr = flat(n);
+  const wind_warping::TileWindow t = tw_;
+  const Launch lr = flat(static_cast<std::size_t>(t.tcny + 4) * t.wx());
+  const Launch ls = flat(static_cast<std::size_t>(t.tcny + 4) * (t.tcnx + 4));
+  const Launch lg = flat(static_cast<std::size_t>(t.tcny + 2) * (t.tcnx + 2));
   for (int s = 0; s < 2; ++s) {
-    for (int axis = 0; axis < 2; ++axis) {
-      // The spectrum stays intact: Z2D may overwrite its input, which is work_.
-      ERG_LAUNCH(spectral_gradient_kernel, ls.grid, ls.block, c, spectrum_.get(), gauss_[s].get(),
-                 work_.get(), axis);
-      ERG_CUFFT_CHECK(cufftExecZ2D(inverse_.get(), work_.get(), coarse_h_.get()));
-      float* out = axis == 0 ? grad_x_[s].get() : grad_y_[s].get();
-      ERG_LAUNCH(to_float_kernel, lr.grid, lr.block, coarse_h_.get(), out, n);
-    }
+    ERG_LAUNCH(rows_kernel, lr.grid, lr.block, t, window_.get(), ky_[s].get(), c.radius_y[s],
+               rows_.get());
+    ERG_LAUNCH(smooth_kernel, ls.grid, ls.block, t, rows_.get(), kx_[s].get(), c.radius_x[s],
+               smooth_.get());
+    ERG_LAUNCH(gradient_kernel, lg.grid, lg.block, t, smooth_.get(), c.cx * c.cell_m,
+               c.cy * c.cell_m, grad_x_[s].get(), grad_y_[s].get());
   }
 }
 
@@ -140,15 +154,15 @@ void CudaBackend::heights() {
 void CudaBackend::wind(Vec2 a) {
   const CoarseGrid& c = m_.coarse;
   const Launch cells = owned_cells(g_);
-  std::vector<double> mine(coarse_mine_.size()), all;
+  std::vector<double> mine(coarse_mine_.size());
   ERG_CUDA_CHECK(
       cudaMemcpy(mine.data(), coarse_mine_.get(), coarse_mine_.bytes(), cudaMemcpyDeviceToHost));
-  ex_.gather_coarse(mine, all);
+  ex_.coarse_window(mine, tw_.tcnx, tw_.tcny, tw_.hx, tw_.hy, window_host_);
   ERG_CUDA_CHECK(
-      cudaMemcpy(coarse_h_.get(), all.data(), coarse_h_.bytes(), cudaMemcpyHostToDevice));
+      cudaMemcpy(window_.get(), window_host_.data(), window_.bytes(), cudaMemcpyHostToDevice));
   coarse_gradients();
 
-  ERG_LAUNCH(wind_kernel, cells.grid, cells.block, g_, c, a, m_.venturi_k, m_.warp,
+  ERG_LAUNCH(wind_kernel, cells.grid, cells.block, g_, c, tw_.tcnx + 2, a, m_.venturi_k, m_.warp,
              d_.height_m.get(), grad_x_[0].get(), grad_y_[0].get(), grad_x_[1].get(),
              grad_y_[1].get(), d_.wind_x.get(), d_.wind_y.get());
 }
