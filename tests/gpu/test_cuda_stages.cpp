@@ -7,18 +7,17 @@
 // compared after every stage of every step (tests/common/stage_agreement.h):
 // - integer units (sand, airborne sand, bedrock) exactly;
 // - float fields by bits, since both run the same stages/ code with the same
-//   operations (no fused multiply-add on either side: CMakeLists.txt);
-// - except the surface wind: its smoothing is an FFT on both sides (FFTW on
-//   the CPU, cuFFT on the GPU), and the two sum in different orders. Its
-//   smoothed heights agree to float rounding (about 1e-6 relative), so the
-//   warped wind (|w| of a few m/s here) to well within 1e-3 m/s, the bound.
-//   After the wind stage the CUDA run takes the CPU's wind, so every later
-//   stage is judged on the same inputs.
+//   operations in the same order (no fused multiply-add on either side:
+//   CMakeLists.txt), the wind's coarse smoothing included (truncated
+//   Gaussians summed tap by tap in one order: stages/wind_warping.h).
+// Where a stage differs, the failure names the step, the stage, the field
+// and the first cell. One place may: the vortex's profile calls the double
+// exp() of each side's math library (stages/wind_primitives.h), which need
+// not round its last bit alike; no GPU has run this yet to say.
 // The harness is proven on the CPU in CI (tests/sim/test_stage_agreement.cpp).
 #include <gtest/gtest.h>
 
 #include <string>
-#include <vector>
 
 #include "../common/stage_agreement.h"
 #include "../common/stage_scene.h"
@@ -45,14 +44,8 @@ class CudaStages : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(CudaStages, EveryStageGivesTheCpuBits) {
   ASSERT_TRUE(cuda_device_available()) << "this test needs a CUDA device";
-  const std::vector<test_support::FieldBound> fft = {
-      {fields::kWindX, 1e-3, "FFTW and cuFFT sum in different orders"},
-      {fields::kWindY, 1e-3, "FFTW and cuFFT sum in different orders"}};
-  const test_support::Agreement a = test_support::expect_stages_agree(
-      scene(GetParam()), on(BackendKind::kCpu), on(BackendKind::kCuda), 4, fft);
-  // What the bound let through, for the record.
-  std::printf("largest wind difference: x %.3g m/s, y %.3g m/s\n", a.max_abs[fields::kWindX],
-              a.max_abs[fields::kWindY]);
+  test_support::expect_stages_agree(scene(GetParam()), on(BackendKind::kCpu),
+                                    on(BackendKind::kCuda), 4);
 }
 
 INSTANTIATE_TEST_SUITE_P(Transport, CudaStages, ::testing::Values("EXPECTED", "STOCHASTIC"));
