@@ -118,6 +118,8 @@ done
 cat >"$STAGE/run/env.sh" <<'EOF'
 # Sourced by the wrappers in run/ with B set to the bundle's folder: Open MPI,
 # PMIx and hwloc find their components and help texts in the bundle.
+# A preload of the machine's would be loaded against the bundle's libc.
+unset LD_PRELOAD
 export OPAL_PREFIX="$B/ompi" OPAL_EXEC_PREFIX="$B/ompi" OPAL_BINDIR="$B/run" OPAL_LIBDIR="$B/lib"
 export OPAL_PKGLIBDIR="$B/ompi/lib/openmpi3" OPAL_DATAROOTDIR="$B/ompi/share"
 export OPAL_DATADIR="$B/ompi/share" OPAL_PKGDATADIR="$B/ompi/share/openmpi"

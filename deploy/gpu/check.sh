@@ -52,6 +52,8 @@ if [ -n "${OUT:-}" ]; then
   exec > >(tee -a "$log") 2>&1
 fi
 say() { printf '%s\n' "$*"; }
+# ldconfig lies in /sbin, which a non-root PATH may lack.
+ldcache() { { command -v ldconfig >/dev/null && ldconfig -p || /sbin/ldconfig -p; } 2>/dev/null; }
 left() { echo $((budget - ($(date +%s) - start))); }
 # part SECONDS CMD...: runs CMD with at most SECONDS (and what is left of the
 # budget); prints how it ended.
@@ -91,7 +93,7 @@ export ERG_WORKER_BIN=$B/run/erg-worker ERG_MPIEXEC=$B/run/mpirun
 rm -rf "$B/device" && mkdir -p "$B/device"
 if [ "$mode" = gpu ]; then
   cudadir=
-  for d in $(ldconfig -p 2>/dev/null | awk '/libcuda\.so\.1 /{print $NF}' | xargs -r -n1 dirname) \
+  for d in $(ldcache | awk '/libcuda\.so\.1 /{print $NF}' | xargs -r -n1 dirname) \
     /usr/lib/x86_64-linux-gnu /usr/lib64 /usr/local/nvidia/lib64 /usr/local/nvidia/lib \
     /lib/x86_64-linux-gnu /usr/lib/wsl/lib /usr/local/cuda/compat; do
     if [ -e "$d/libcuda.so.1" ]; then cudadir=$d; break; fi
@@ -115,7 +117,7 @@ for d in ${CUDA_HOME:+$CUDA_HOME/lib64} /usr/local/cuda/lib64 /usr/local/cuda/ta
     /usr/lib/python3*/dist-packages/nvidia/cufft/lib /opt/conda/lib/python3*/site-packages/nvidia/cufft/lib \
     "$HOME"/.local/lib/python3*/site-packages/nvidia/cufft/lib \
     $(python3 -c 'import nvidia, os; print(" ".join(os.path.join(p, "cufft", "lib") for p in nvidia.__path__))' 2>/dev/null) \
-  $(ldconfig -p 2>/dev/null | awk '/libcufft\.so\./{print $NF}' | xargs -r -n1 dirname); do
+  $(ldcache | awk '/libcufft\.so\./{print $NF}' | xargs -r -n1 dirname); do
   for n in $(cat "$B/device.needs"); do
     case "$n" in libcufft*) [ -e "$d/$n" ] && { cufft=$d/$n; break 2; } ;; esac
   done
