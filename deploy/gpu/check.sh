@@ -145,6 +145,7 @@ else
 fi
 
 rows=()
+fail=0
 # bench LABEL TIMEOUT ARGS...: one erg-bench run; its JSON line goes to rows.
 bench() {
   local label=$1 t=$2
@@ -157,6 +158,7 @@ bench() {
   if [ "$rc" != 0 ] || [ -z "$line" ]; then
     tail -20 "$work/bench.out"
     rows+=("$label|FAILED (exit $rc)")
+    fail=1
   else
     say "$line"
     rows+=("$label|$line")
@@ -194,7 +196,6 @@ table() {
   done
 }
 
-fail=0
 if [ "$mode" = gpu ]; then
   # ---- the gpu tests ---------------------------------------------------------
   say ""
