@@ -15,6 +15,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -29,9 +30,16 @@ namespace {
 namespace fs = std::filesystem;
 using TempDir = erg::test_support::TempDir;
 
-const std::string kWorker = ERG_WORKER_BIN;
+// The build's erg-worker and mpiexec, unless ERG_WORKER_BIN / ERG_MPIEXEC
+// name others: a bundle (deploy/gpu/bundle.sh) runs this binary on a machine
+// where the build's paths do not exist, through its own loader.
+std::string from_env(const char* name, const char* built) {
+  const char* v = std::getenv(name);
+  return v && *v ? std::string(v) : std::string(built);
+}
+const std::string kWorker = from_env("ERG_WORKER_BIN", ERG_WORKER_BIN);
 const std::string kMpirun =
-    std::string(ERG_MPIEXEC) + " --allow-run-as-root --oversubscribe --bind-to none";
+    from_env("ERG_MPIEXEC", ERG_MPIEXEC) + " --allow-run-as-root --oversubscribe --bind-to none";
 
 // No events that add sand: the totals are those of the initial layers.
 std::string job(const std::string& transport) {

@@ -2,6 +2,7 @@
 #include "backend/backend.h"
 
 #include <iostream>
+#include <stdexcept>
 
 #include "backend/cpu/cpu_backend.h"
 
@@ -11,7 +12,19 @@ namespace erg {
 // backend/cuda/cuda_backend.cu
 std::unique_ptr<Backend> make_cuda_backend(const Model& model, dist::Exchange& ex, int local_rank);
 bool cuda_runtime_has_device();
+CudaDeviceInfo cuda_runtime_device_info(int local_rank);
 #endif
+
+CudaDeviceInfo cuda_device_info(int local_rank) {
+#ifdef ERG_HAVE_CUDA
+  if (!cuda_runtime_has_device())
+    throw std::runtime_error("no CUDA device is visible to this process");
+  return cuda_runtime_device_info(local_rank);
+#else
+  (void)local_rank;
+  throw std::runtime_error("this build has no CUDA backend (nvcc was not found)");
+#endif
+}
 
 bool cuda_device_available() {
 #ifdef ERG_HAVE_CUDA

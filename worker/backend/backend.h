@@ -137,4 +137,19 @@ std::unique_ptr<Backend> make_backend(BackendKind kind, const Model& model, int 
 // True when this build has the CUDA backend and the runtime sees a device.
 bool cuda_device_available();
 
+// The GPU a CUDA backend on `local_rank` uses (local_rank % devices, as
+// make_backend picks it) and its memory bandwidth measured now: the best of
+// 10 device-to-device cudaMemcpy of 256 MiB, counting the bytes read and the
+// bytes written (2 x 256 MiB per copy), the figure erg-bench divides its
+// bytes-moved model by. Throws std::runtime_error without a CUDA device.
+struct CudaDeviceInfo {
+  std::string name;                             // cudaDeviceProp::name
+  int major = 0, minor = 0;                     // compute capability
+  double memory_bytes = 0;                      // global memory
+  int multiprocessors = 0;                      // SM count
+  double copy_bytes_per_s = 0;                  // measured, read + write
+  int runtime_version = 0, driver_version = 0;  // cudaRuntimeGetVersion, cudaDriverGetVersion
+};
+CudaDeviceInfo cuda_device_info(int local_rank = 0);
+
 }  // namespace erg

@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 // erg-bench: the benchmark scenes of [N24] Table 1 (docs/design.md, "Benchmarks").
 //
-//   erg-bench --scene A|B --size 512|1024|2048|4096 [--steps N] [--warmup W]
+//   erg-bench --scene A|B --size 512|1024|2048|4096|8192 [--steps N] [--warmup W]
 //             [--threads T] [--backend auto|cpu|cuda] [--iterations I] [--json]
 //             [--ranks P [--tiles PXxPY]] [--scaling]
+//   erg-bench --device-info [--json]
 //
 // --ranks P runs the scene on P MPI ranks (erg-bench starts mpirun itself),
 // one tile each, and reports the halo messages and bytes per rank and step.
@@ -16,7 +17,10 @@
 // Scene B (transverse): sand uniform in [3, 5) m, wind 3 m/s.
 // Prints ms per step, per-stage ms, cell updates per second and a roofline
 // estimate: the bytes the pipeline must move per step divided by the memory
-// bandwidth measured here with a STREAM-like triad.
+// bandwidth measured here: a STREAM-like triad on the CPU backend, a
+// device-to-device copy on the CUDA backend (cuda_device_info, backend.h).
+// --device-info prints the GPU (name, compute capability, memory, SMs,
+// runtime and driver) and its measured copy bandwidth, and exits.
 #include <mpi.h>
 #include <omp.h>
 #include <unistd.h>
@@ -54,6 +58,7 @@ struct Args {
   std::string tiles;  // --tiles PXxPY
   int tiles_x = 0, tiles_y = 0;
   bool scaling = false;
+  bool device_info = false;
 };
 
 Args parse(int argc, char** argv) {
@@ -86,12 +91,14 @@ Args parse(int argc, char** argv) {
       a.tiles = next();
     else if (f == "--scaling")
       a.scaling = true;
+    else if (f == "--device-info")
+      a.device_info = true;
     else
       throw std::invalid_argument(f + ": unknown flag");
   }
   if (a.scene != "A" && a.scene != "B") throw std::invalid_argument("--scene must be A or B");
-  if (a.size != 512 && a.size != 1024 && a.size != 2048 && a.size != 4096)
-    throw std::invalid_argument("--size must be 512, 1024, 2048 or 4096");
+  if (a.size != 512 && a.size != 1024 && a.size != 2048 && a.size != 4096 && a.size != 8192)
+    throw std::invalid_argument("--size must be 512, 1024, 2048, 4096 or 8192");
   if (a.steps < 1) throw std::invalid_argument("--steps must be >= 1");
   if (a.ranks < 0 || a.ranks > 4096) throw std::invalid_argument("--ranks must be in [1, 4096]");
   if (!a.tiles.empty()) {
@@ -269,10 +276,36 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::cerr
         << "erg-bench: " << e.what() << "\n"
-        << "usage: erg-bench --scene A|B --size 512|1024|2048|4096 [--steps N] [--warmup W]\n"
-        << "                 [--threads T] [--backend auto|cpu|cuda] [--iterations I] [--json]\n"
-        << "                 [--ranks P [--tiles PXxPY]] [--scaling]\n";
+        << "usage: erg-bench --scene A|B --size 512|1024|2048|4096|8192 [--steps N]\n"
+        << "                 [--warmup W] [--threads T] [--backend auto|cpu|cuda]\n"
+        << "                 [--iterations I] [--json] [--ranks P [--tiles PXxPY]] [--scaling]\n"
+        << "       erg-bench --device-info [--json]\n";
     return 2;
+  }
+  if (a.device_info) {
+    try {
+      const erg::CudaDeviceInfo d = erg::cuda_device_info(0);
+      std::ostringstream o;
+      o.precision(4);
+      o << std::fixed;
+      if (a.json)
+        o << "{\"device\":\"" << d.name << "\",\"compute_capability\":\"" << d.major << "."
+          << d.minor << "\",\"memory_gib\":" << d.memory_bytes / (1u << 30)
+          << ",\"multiprocessors\":" << d.multiprocessors
+          << ",\"cuda_runtime\":" << d.runtime_version << ",\"cuda_driver\":" << d.driver_version
+          << ",\"copy_bandwidth_gbs\":" << d.copy_bytes_per_s / 1e9 << "}\n";
+      else
+        o << "device 0: " << d.name << ", compute capability " << d.major << "." << d.minor << ", "
+          << d.memory_bytes / (1u << 30) << " GiB, " << d.multiprocessors << " SMs; CUDA runtime "
+          << d.runtime_version << ", driver " << d.driver_version
+          << "\n  device-to-device copy (256 MiB, read + write): " << d.copy_bytes_per_s / 1e9
+          << " GB/s\n";
+      std::cout << o.str();
+      return 0;
+    } catch (const std::exception& e) {
+      std::cerr << "erg-bench: --device-info: " << e.what() << "\n";
+      return 1;
+    }
   }
   const bool child = std::getenv("ERG_BENCH_CHILD") != nullptr;
   if (a.ranks >= 1 && !child) {
@@ -356,8 +389,17 @@ int main(int argc, char** argv) {
   // most active one (they exchange in rounds together).
   const double iters_per_step = slowest(
       static_cast<double>(after.avalanche_iterations - before.avalanche_iterations) / a.steps);
-  // Triad bandwidth only alone: ranks sharing a node share its bandwidth.
-  const double bandwidth = cpu && nranks == 1 ? triad_bandwidth(opt.threads) : 0.0;
+  // Bandwidth only alone: ranks sharing a node (or a GPU) share its
+  // bandwidth. The CPU's is a triad, the GPU's a device-to-device copy.
+  double bandwidth = 0.0;
+  std::string bandwidth_source = "none";
+  if (nranks == 1 && cpu) {
+    bandwidth = triad_bandwidth(opt.threads);
+    bandwidth_source = "cpu_triad";
+  } else if (nranks == 1 && sim.backend().name() == "cuda") {
+    bandwidth = erg::cuda_device_info(0).copy_bytes_per_s;
+    bandwidth_source = "cuda_device_copy";
+  }
   if (rank != 0) {
     MPI_Finalize();
     return 0;
@@ -391,7 +433,8 @@ int main(int argc, char** argv) {
   for (int k = 0; k < erg::kStageCount; ++k)
     o << (k ? "," : "") << "\"" << erg::kStageNames[k] << "\":" << stage_ms[static_cast<size_t>(k)];
   o << "},\"bytes_per_step_model\":" << std::scientific << bytes_per_step << std::fixed
-    << ",\"memory_bandwidth_gbs\":" << bandwidth / 1e9
+    << ",\"memory_bandwidth_gbs\":" << bandwidth / 1e9 << ",\"bandwidth_source\":\""
+    << bandwidth_source << "\""
     << ",\"roofline_ms_per_step\":" << roofline_ms
     << ",\"ratio_to_roofline\":" << (roofline_ms > 0 ? ms_per_step / roofline_ms : 0.0) << "}";
   if (a.json) {
@@ -416,8 +459,8 @@ int main(int argc, char** argv) {
                 << " ms\n";
     if (bandwidth > 0)
       std::cout << "  roofline: " << bytes_per_step / 1e6 << " MB/step at " << bandwidth / 1e9
-                << " GB/s = " << roofline_ms << " ms/step; erg is " << ms_per_step / roofline_ms
-                << "x from it\n";
+                << " GB/s (" << bandwidth_source << ") = " << roofline_ms << " ms/step; erg is "
+                << ms_per_step / roofline_ms << "x from it\n";
   }
   MPI_Finalize();
   return 0;

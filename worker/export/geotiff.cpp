@@ -3,14 +3,30 @@
 // predictor (PREDICTOR=3), 256 x 256 tiles, the pixel size as geotransform and
 // a local engineering CRS in metres (the domain is a torus, not a place on
 // Earth), the job spec and the step in GDAL metadata.
+// Built with ERG_WITH_GDAL=OFF (ERG_NO_GDAL), write_geotiff refuses, naming
+// the missing feature; the other formats need no GDAL.
+#include <string>
+
+#include "export/export.h"
+
+#if defined(ERG_NO_GDAL)
+
+namespace erg::exporting {
+void write_geotiff(const std::string& path, const Field&, const Provenance&) {
+  throw ExportError(path +
+                    ": GeoTIFF export is not available: this erg was built without GDAL "
+                    "(ERG_WITH_GDAL=OFF); use --format png16, exr or obj, or a build with GDAL");
+}
+}  // namespace erg::exporting
+
+#else
+
 #include <cpl_conv.h>
 #include <cpl_string.h>
 #include <gdal.h>
 
 #include <mutex>
-#include <string>
 
-#include "export/export.h"
 #include "io/atomic_file.h"
 
 namespace erg::exporting {
@@ -110,3 +126,5 @@ void write_geotiff(const std::string& path, const Field& f, const Provenance& p)
 }
 
 }  // namespace erg::exporting
+
+#endif  // ERG_NO_GDAL

@@ -1,6 +1,26 @@
 // SPDX-License-Identifier: Apache-2.0
 // Input maps through GDAL (GeoTIFF, and any raster GDAL reads): band 1 as
 // doubles, row 0 = south, with the pixel size and linear unit the file gives.
+// Built with ERG_WITH_GDAL=OFF (ERG_NO_GDAL), read_gdal_map refuses, naming
+// the missing feature.
+#include <string>
+
+#include "io/atomic_file.h"
+#include "io/io.h"
+
+#if defined(ERG_NO_GDAL)
+
+namespace erg::io {
+Map read_gdal_map(const std::string& path) {
+  detail::fail(path,
+               "GeoTIFF map imports are not available: this erg was built without GDAL "
+               "(ERG_WITH_GDAL=OFF); convert the map to HDF5, PNG16 or EXR, or use a build with "
+               "GDAL");
+}
+}  // namespace erg::io
+
+#else
+
 #include <cpl_conv.h>
 #include <gdal.h>
 #include <ogr_srs_api.h>
@@ -10,9 +30,6 @@
 #include <mutex>
 #include <string>
 #include <vector>
-
-#include "io/atomic_file.h"
-#include "io/io.h"
 
 namespace erg::io {
 
@@ -105,3 +122,5 @@ Map read_gdal_map(const std::string& path) {
 }
 
 }  // namespace erg::io
+
+#endif  // ERG_NO_GDAL

@@ -516,4 +516,45 @@ bool cuda_runtime_has_device() {
   return count > 0;
 }
 
+CudaDeviceInfo cuda_runtime_device_info(int local_rank) {
+  int count = 0;
+  ERG_CUDA_CHECK(cudaGetDeviceCount(&count));
+  const int device = local_rank % count;
+  ERG_CUDA_CHECK(cudaSetDevice(device));
+  cudaDeviceProp p{};
+  ERG_CUDA_CHECK(cudaGetDeviceProperties(&p, device));
+  CudaDeviceInfo info;
+  info.name = p.name;
+  info.major = p.major;
+  info.minor = p.minor;
+  info.memory_bytes = static_cast<double>(p.totalGlobalMem);
+  info.multiprocessors = p.multiProcessorCount;
+  ERG_CUDA_CHECK(cudaRuntimeGetVersion(&info.runtime_version));
+  ERG_CUDA_CHECK(cudaDriverGetVersion(&info.driver_version));
+  // A copy far larger than the L2 (50 MiB on an H100/H200): the rate at
+  // which a streaming kernel can read and write device memory.
+  const std::size_t n = std::size_t{256} << 20;
+  gpu::DeviceBuffer<unsigned char> a, b;
+  a.reset(n);
+  b.reset(n);
+  cudaEvent_t start = nullptr, stop = nullptr;
+  ERG_CUDA_CHECK(cudaEventCreate(&start));
+  ERG_CUDA_CHECK(cudaEventCreate(&stop));
+  ERG_CUDA_CHECK(cudaMemcpy(b.get(), a.get(), n, cudaMemcpyDeviceToDevice));  // warm-up
+  float best_ms = 0;
+  for (int rep = 0; rep < 10; ++rep) {
+    ERG_CUDA_CHECK(cudaEventRecord(start));
+    ERG_CUDA_CHECK(cudaMemcpy(b.get(), a.get(), n, cudaMemcpyDeviceToDevice));
+    ERG_CUDA_CHECK(cudaEventRecord(stop));
+    ERG_CUDA_CHECK(cudaEventSynchronize(stop));
+    float ms = 0;
+    ERG_CUDA_CHECK(cudaEventElapsedTime(&ms, start, stop));
+    if (rep == 0 || ms < best_ms) best_ms = ms;
+  }
+  ERG_CUDA_CHECK(cudaEventDestroy(start));
+  ERG_CUDA_CHECK(cudaEventDestroy(stop));
+  info.copy_bytes_per_s = best_ms > 0 ? 2.0 * static_cast<double>(n) / (best_ms * 1e-3) : 0.0;
+  return info;
+}
+
 }  // namespace erg
