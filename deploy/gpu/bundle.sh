@@ -57,7 +57,7 @@ if ! grep -q '^CMAKE_CUDA_COMPILER:[A-Z]*=.*nvcc' "$BUILD/CMakeCache.txt"; then
   exit 1
 fi
 # The gpu-labelled test binaries: every executable tests/gpu defines.
-GPU_TESTS=$(sed -n 's/^ *add_executable(\([A-Za-z0-9_]*\).*/\1/p' "$SRC/tests/gpu/CMakeLists.txt")
+GPU_TESTS=$(sed -n 's/^ *add_executable(\([A-Za-z0-9_]*\).*/\1/p' "$SRC/tests/gpu/CMakeLists.txt" | tr '\n' ' ')
 PROGRAMS="erg-worker erg-bench"
 # shellcheck disable=SC2086
 cmake --build "$BUILD" -j"$JOBS" --target $PROGRAMS $GPU_TESTS
