@@ -265,7 +265,13 @@ EOF
   sed 's/"layers": {/"layers": {"bedrock": {"map": {"path": "dem.tif"}}, /' "$work/tiny.json" >"$work/tif.json"
   say "-- erg-worker tif.json (a GeoTIFF map; the bundle has no GDAL)"
   part 60 "$B/run/erg-worker" "$work/tif.json" --backend cpu --quiet --out "$work/tif" >"$work/tif.out" 2>&1
+  rc=$?
   sed 's/^/  /' "$work/tif.out"
+  # Refused: an error exit, never a crash (a signal) or a success.
+  if [ "$rc" -eq 0 ] || [ "$rc" -ge 124 ]; then
+    say "  exit status $rc, not a refusal: FAILED"
+    fail=1
+  fi
   grep -q 'ERG_WITH_GDAL=OFF' "$work/tif.out" || { say "  no error naming ERG_WITH_GDAL: FAILED"; fail=1; }
   table "CPU self-test; GB/s: CPU triad"
   # ---- where every library came from ------------------------------------------
