@@ -77,7 +77,7 @@ ERG_HD Vec2 warp(Vec2 v, Vec2 grad_large, Vec2 grad_small, const Params& p) {
 // Truncation at 4 sigma leaves out erfc(4 / sqrt 2) = 6.3e-5 of the mass per
 // axis; renormalised, the smoothed height differs from the untruncated one by
 // at most 2 x 6.3e-5 x (the height range within 4 sigma) per pass
-// (docs/design.md, "Wind warping"). Sums run k = 0 .. 2 r, one order.
+// (docs/design.md, "Wind warping"). Sums run in one order (convolve).
 inline constexpr double kTruncationSigmas = 4.0;
 inline int kernel_radius(double sigma_m, double delta_m) {
   return static_cast<int>(std::ceil(kTruncationSigmas * sigma_m / delta_m - 1e-9));
@@ -92,9 +92,15 @@ inline void gaussian_kernel(double sigma_m, double delta_m, int r, double* w) {
   for (int k = 0; k <= 2 * r; ++k) w[k] /= sum;
 }
 // One output of a 1-D pass: `in` points at the centre tap, `stride` apart.
+// The kernel is symmetric (w[r - k] == w[r + k] exactly: the same x * x),
+// so each pair of taps is added first and multiplied once, in one order:
+// centre, then k = 1 .. r (a third fewer operations than tap by tap).
 ERG_HD double convolve(const double* in, long stride, const double* w, int r) {
-  double s = 0;
-  for (int k = 0; k <= 2 * r; ++k) s += w[k] * in[static_cast<long>(k - r) * stride];
+  double s = w[r] * in[0];
+  for (int k = 1; k <= r; ++k) {
+    const long o = static_cast<long>(k) * stride;
+    s += w[r + k] * (in[-o] + in[o]);
+  }
   return s;
 }
 // The gradient of the smoothed heights by central differences (second

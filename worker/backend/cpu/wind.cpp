@@ -26,9 +26,9 @@ CoarseSmoother::CoarseSmoother(const CoarseGrid& c, int tcnx, int tcny)
 
 // The passes of wind_warping::rows_at, smooth_at and gradient_at, with the
 // taps in the outer loop and the cells in the inner one so that it
-// vectorises: every output still sums w[0] x[0] + w[1] x[1] + ... from 0, in
-// that order (no contraction: -ffp-contract=off), so the bits are those of
-// wind_warping::convolve.
+// vectorises: every output still sums the centre tap, then the pairs
+// w[r + k] (x[-k] + x[k]) for k = 1 .. r, in that order (no contraction:
+// -ffp-contract=off), so the bits are those of wind_warping::convolve.
 void CoarseSmoother::gradients(const std::vector<double>& window, std::vector<float> grad_x[2],
                                std::vector<float> grad_y[2], int threads) {
   const wind_warping::TileWindow t = t_;
@@ -43,7 +43,7 @@ void CoarseSmoother::gradients(const std::vector<double>& window, std::vector<fl
   }
   // In blocks of rows and strips of columns, so that the 2 r + 1 input rows
   // a strip reads stay in cache from one output row to the next (each
-  // output's taps still run k = 0 .. 2 r). Both scales in each pass: one
+  // output's taps still run in convolve's order). Both scales in each pass: one
   // parallel region, three barriers.
   constexpr int kRowBlock = 16, kStrip = 64;
   const int blocks = (rows + kRowBlock - 1) / kRowBlock;
@@ -60,12 +60,13 @@ void CoarseSmoother::gradients(const std::vector<double>& window, std::vector<fl
         const int n = ib + kStrip < i1 ? kStrip : i1 - ib;
         for (int j = jb; j < jb + kRowBlock && j < rows; ++j) {
           double acc[kStrip];
-          for (int i = 0; i < n; ++i) acc[i] = 0.0;
-          for (int k = 0; k <= 2 * ry; ++k) {
-            const double w = wy[k];
-            const double* __restrict in =
-                window.data() + static_cast<size_t>(j + t.hy - 2 - ry + k) * wx + ib;
-            for (int i = 0; i < n; ++i) acc[i] += w * in[i];
+          const double* centre = window.data() + static_cast<size_t>(j + t.hy - 2) * wx + ib;
+          for (int i = 0; i < n; ++i) acc[i] = wy[ry] * centre[i];
+          for (int k = 1; k <= ry; ++k) {
+            const double w = wy[ry + k];
+            const double* __restrict lo = centre - static_cast<size_t>(k) * wx;
+            const double* __restrict hi = centre + static_cast<size_t>(k) * wx;
+            for (int i = 0; i < n; ++i) acc[i] += w * (lo[i] + hi[i]);
           }
           double* __restrict out = rows_[s].data() + static_cast<size_t>(j) * wx + ib;
           for (int i = 0; i < n; ++i) out[i] = acc[i];
@@ -78,12 +79,13 @@ void CoarseSmoother::gradients(const std::vector<double>& window, std::vector<fl
       const int rx = c_.radius_x[s];
       const double* wxk = kx_[s].data();
       double* __restrict out = smooth_[s].data() + static_cast<size_t>(j) * sx;
-      for (int i = 0; i < sx; ++i) out[i] = 0.0;
-      const double* row = rows_[s].data() + static_cast<size_t>(j) * wx + (t.hx - 2 - rx);
-      for (int k = 0; k <= 2 * rx; ++k) {
-        const double w = wxk[k];
-        const double* __restrict in = row + k;
-        for (int i = 0; i < sx; ++i) out[i] += w * in[i];
+      const double* centre = rows_[s].data() + static_cast<size_t>(j) * wx + (t.hx - 2);
+      for (int i = 0; i < sx; ++i) out[i] = wxk[rx] * centre[i];
+      for (int k = 1; k <= rx; ++k) {
+        const double w = wxk[rx + k];
+        const double* __restrict lo = centre - k;
+        const double* __restrict hi = centre + k;
+        for (int i = 0; i < sx; ++i) out[i] += w * (lo[i] + hi[i]);
       }
     }
 #pragma omp for schedule(static)
