@@ -90,6 +90,12 @@ void show_event(const erg::v1::WorkerEvent& ev, ProgressBar& bar, const std::str
                       static_cast<double>(d.peak_rss_bytes()) / 1073741824.0);
         std::cerr << line;
       }
+      // Avalanching iterates until settled; the cap is a safety net, never
+      // silent.
+      if (d.avalanche_capped_steps() > 0)
+        std::cerr << "erg: " << d.avalanche_capped_steps()
+                  << " step(s) reached model.avalanche_iterations with sand still moving (at most "
+                  << d.avalanche_most_iterations() << " iterations moved sand in a step)\n";
       erg::v1::Progress totals;
       totals.set_sand_units_total(d.totals().sand_units_total());
       totals.set_airborne_units_total(d.totals().airborne_units_total());

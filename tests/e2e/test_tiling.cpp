@@ -272,6 +272,45 @@ TEST(Tiling, SettledTilesWaitForASpreadingColumn) {
   EXPECT_EQ(cells[1][1], 0) << "no tile stayed settled: the test no longer covers waiting tiles";
 }
 
+// Avalanching iterates until settled, with the default safety cap: a 10 m
+// sand column at 0.5 m cells on the corner of four tiles needs hundreds of
+// iterations per step, many later rounds of 46, and the tiles stop together
+// when every one has settled. Same bits on 1, 2 and 4 ranks, and no step
+// reached the cap.
+// The done event of a worker's progress output.
+erg::v1::WorkerEvent::Done done_event(const std::string& output) {
+  std::istringstream lines(output);
+  for (std::string line; std::getline(lines, line);)
+    if (const auto ev = erg::job::parse_worker_event(line); ev && ev->has_done()) return ev->done();
+  ADD_FAILURE() << "no done event in\n" << output;
+  return {};
+}
+
+TEST(Tiling, SettlingAColumnAcrossTileCornersGivesTheSameBits) {
+  TempDir t("erg_tiling");
+  write(t / "settle.json", R"({"domain": {"nx": 200, "ny": 192, "cell_size_m": 0.5},
+ "layers": {"sand": {"piles": [{"x_m": 50, "y_m": 48, "height": 10, "radius_m": 6, "shape": "CYLINDER"}]}},
+ "wind": {"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.31, "direction_deg": 30}},
+ "transport": "STOCHASTIC", "seed": 5, "model": {"slab_m": 0.05, "reptation_k": 0.2},
+ "run": {"steps": 4, "snapshot_every": 2}})");
+  Result r = run(worker_on(1, (t / "settle.json") + " --out " + (t / "one") + " --progress-fd 1"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(r.output.find("reached model.avalanche_iterations"), std::string::npos) << r.output;
+  const auto one = done_event(r.output);
+  EXPECT_EQ(one.avalanche_capped_steps(), 0);
+  EXPECT_GT(one.avalanche_most_iterations(), 4 + 2 * 46) << "too few iterations for later rounds";
+  for (const std::string tiles : {"2x1", "2x2"}) {
+    const std::string dir = t / tiles;
+    const int ranks = tiles == "2x1" ? 2 : 4;
+    r = run(worker_on(ranks, (t / "settle.json") + " --out " + dir + " --tiles " + tiles +
+                                 " --progress-fd 1 --threads 1"));
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_EQ(r.output.find("reached model.avalanche_iterations"), std::string::npos) << r.output;
+    EXPECT_EQ(done_event(r.output).avalanche_capped_steps(), 0) << tiles;
+    expect_same_runs(t / "one", dir, {"00000002", "00000004"}, "settling on " + tiles + " tiles");
+  }
+}
+
 // The exchange rounds per step must not grow with the number of
 // avalanching iterations. The column keeps sand moving through every
 // iteration of the first steps, so N = 12 and N = 48 both use the second,

@@ -204,6 +204,43 @@ TEST_P(ExactnessObstacles, ConservedNoSandInsideAndThreadInvariant) {
 INSTANTIATE_TEST_SUITE_P(Modes, ExactnessObstacles, ::testing::Values("EXPECTED", "STOCHASTIC"),
                          [](const auto& info) { return info.param; });
 
+// Avalanching iterates until settled (docs/design.md, "Avalanching until
+// settled"): a 10 m column at 0.5 m cells needs hundreds of iterations in
+// its first steps. The stop is exact (an iteration finds no donor or moves
+// nothing: every later one would be the identity), so 1, 2 and 4 threads,
+// and the rounds of one tile and of several (a first round of 4 then rounds
+// of 46; of 4 then 7), give the same bits and the same iteration counts.
+TEST(Exactness, SettlingIsThreadAndRoundInvariant) {
+  const std::string column = R"({
+    "domain": {"nx": 80, "ny": 64, "cell_size_m": 0.5},
+    "layers": {"sand": {"piles": [{"x_m": 20, "y_m": 16, "height": 10, "radius_m": 6,
+                                   "shape": "CYLINDER"}]}},
+    "wind": {"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.31, "direction_deg": 30}},
+    "transport": "STOCHASTIC", "seed": 3, "model": {"slab_m": 0.05, "reptation_k": 0.2},
+    "run": {"steps": 4}})";
+  auto run = [&](int threads, AvalancheRounds rounds) {
+    Placement place;
+    place.rounds = rounds;
+    Simulation sim(spec_from(column), ".", cpu_threads(threads), place);
+    for (int s = 0; s < 4; ++s) sim.step();
+    EXPECT_EQ(sim.times().avalanche_capped_steps, 0);
+    return std::make_pair(sim.state(), sim.times());
+  };
+  const auto [one, times] = run(1, kOneTileRounds);
+  EXPECT_GT(times.avalanche_most, kTiledRounds.length + kTiledRounds.later)
+      << "settling too short to need several later rounds";
+  const std::pair<int, AvalancheRounds> variants[] = {
+      {2, kOneTileRounds}, {4, kOneTileRounds}, {2, kTiledRounds}, {1, AvalancheRounds{4, 7}}};
+  for (const auto& [threads, rounds] : variants) {
+    const std::string what = std::to_string(threads) + " threads, rounds of " +
+                             std::to_string(rounds.length) + " then " +
+                             std::to_string(rounds.later);
+    const auto [state, t] = run(threads, rounds);
+    expect_bitwise_equal(one, state, what);
+    EXPECT_EQ(times.avalanche_iterations, t.avalanche_iterations) << what;
+  }
+}
+
 }  // namespace
 }  // namespace erg::test
 
@@ -239,10 +276,11 @@ TEST(Exactness, SparseAvalanchingEqualsVisitingEveryCell) {
 
 // Ghost-zone rounds (backend/cpu/avalanching.cpp) are execution only: a
 // refill before every iteration (one tile), rounds of 3, a first round of 4
-// then the rest in one (several tiles), a first round of 3 then the rest,
-// and all iterations in one round give the same fields, bit for bit. A 60 m
-// sand column needs many more iterations than one round to spread, so every
-// grouping refills, and the rest-in-one rounds widen.
+// then rounds of 46 (several tiles; here the rest, 21), a first round of 4
+// then wider rounds of 7, a first round of 3 then the rest, and all
+// iterations in one round give the same fields, bit for bit. A 60 m sand
+// column needs many more iterations than one round to spread, so every
+// grouping refills, and the later rounds widen.
 TEST(Exactness, AvalanchingRoundsDoNotChangeResults) {
   const std::string column = R"({
     "domain": {"nx": 96, "ny": 80, "cell_size_m": 1.0},
@@ -263,10 +301,10 @@ TEST(Exactness, AvalanchingRoundsDoNotChangeResults) {
   };
   const auto [per_iteration, moved] = run(kOneTileRounds);
   EXPECT_GT(moved, 20 * kTiledRounds.length) << "avalanching too short to need several rounds";
-  for (const AvalancheRounds rounds : {AvalancheRounds{3, false}, kTiledRounds,
-                                       AvalancheRounds{3, true}, AvalancheRounds{0, false}}) {
-    const std::string what =
-        "rounds of " + std::to_string(rounds.length) + (rounds.rest_in_one ? " then the rest" : "");
+  for (const AvalancheRounds rounds : {AvalancheRounds{3, 3}, kTiledRounds, AvalancheRounds{4, 7},
+                                       AvalancheRounds{3, 0}, AvalancheRounds{0, 0}}) {
+    const std::string what = "rounds of " + std::to_string(rounds.length) + " then " +
+                             (rounds.later > 0 ? std::to_string(rounds.later) : "the rest");
     const auto [state, moved_too] = run(rounds);
     expect_bitwise_equal(per_iteration, state, what);
     EXPECT_EQ(moved, moved_too) << what;

@@ -55,6 +55,15 @@ inline void check_owned_upload(fields::Id id, const std::vector<float>& in, cons
                                 " needs one value per owned cell");
 }
 
+// What a step's sand avalanching did: the iterations that moved sand, and
+// whether it reached model.avalanche_iterations with sand still moving (the
+// safety cap: a step normally stops when the terrain settles, far below it;
+// the same on every tile).
+struct AvalancheResult {
+  int moved = 0;
+  bool capped = false;
+};
+
 class Backend {
  public:
   virtual ~Backend() = default;
@@ -104,9 +113,10 @@ class Backend {
   virtual void saltation_impact(std::int64_t step) = 0;
   // Reptation [N24 eqs. 6-8].
   virtual void reptation() = 0;
-  // Sand avalanching [N24 eqs. 9-11]; returns the iterations that moved sand.
-  // Rounds after the first refill their ghosts with `refill`.
-  virtual int avalanche_sand(const Refill& refill) = 0;
+  // Sand avalanching [N24 eqs. 9-11], iterated until nothing moves (at most
+  // model.avalanche_iterations). Rounds after the first refill their ghosts
+  // with `refill`.
+  virtual AvalancheResult avalanche_sand(const Refill& refill) = 0;
   // Bedrock avalanching at the bedrock repose angle.
   virtual void avalanche_bedrock(const Refill& refill) = 0;
 

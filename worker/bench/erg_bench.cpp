@@ -12,7 +12,8 @@
 // and reports the strong-scaling efficiency T1 / (P TP).
 //
 // Domain 1024 m x 1024 m, wind along +x, no bedrock relief, vegetation or
-// abrasion; cell size 1024 m / size; avalanching 13/25/50/100 iterations.
+// abrasion; cell size 1024 m / size; avalanching until settled (the job's
+// default cap, model.avalanche_iterations; --iterations I sets another cap).
 // Scene A (barchans): sand uniform in [0.5, 2.0) m, wind 5 m/s.
 // Scene B (transverse): sand uniform in [3, 5) m, wind 3 m/s.
 // Prints ms per step, per-stage ms, cell updates per second and a roofline
@@ -119,8 +120,6 @@ Args parse(int argc, char** argv) {
 
 erg::v1::JobSpec scene_spec(const Args& a) {
   const double l = 1024.0 / a.size;
-  const int iterations =
-      a.iterations >= 0 ? a.iterations : (a.size == 512 ? 13 : a.size / 1024 * 25);
   std::ostringstream j;
   j << R"({"name":"bench-)" << a.scene << "-" << a.size << R"(",)"
     << R"("domain":{"nx":)" << a.size << R"(,"ny":)" << a.size << R"(,"cell_size_m":)" << l << "},"
@@ -129,8 +128,9 @@ erg::v1::JobSpec scene_spec(const Args& a) {
     << R"("wind":{"constant":{"speed_mps":)" << (a.scene == "A" ? 5 : 3)
     << R"(,"direction_deg":0}},)"
     // The hop must stay within 16 cells: at 0.25 m cells, 4 m.
-    << R"("model":{"avalanche_iterations":)" << iterations << R"(,"max_hop_m":)"
-    << std::min(8.0, 16 * l) << "},"
+    << R"("model":{)"
+    << (a.iterations >= 0 ? R"("avalanche_iterations":)" + std::to_string(a.iterations) + "," : "")
+    << R"("max_hop_m":)" << std::min(8.0, 16 * l) << "},"
     << R"("run":{"steps":)" << a.steps + a.warmup << "}}";
   erg::v1::JobSpec spec = erg::job::parse_json(j.str(), "bench scene");
   erg::job::apply_defaults(spec);
@@ -425,6 +425,8 @@ int main(int argc, char** argv) {
     << sim.backend().name() << "\",\"ranks\":" << nranks << ",\"tiles\":\"" << tiles
     << "\",\"threads\":" << (cpu ? opt.threads : 0) << ",\"avalanche_iterations\":" << iterations
     << ",\"avalanche_iterations_moving_per_step\":" << iters_per_step
+    << ",\"avalanche_most_iterations_per_step\":" << after.avalanche_most
+    << ",\"avalanche_capped_steps\":" << after.avalanche_capped_steps
     << ",\"ms_per_step\":" << ms_per_step << ",\"warmup_steps\":" << a.warmup
     << ",\"warmup_ms_per_step\":" << warmup_ms << ",\"cell_updates_per_s\":" << std::scientific
     << cells * a.steps / (total_ms * 1e-3) << std::fixed
@@ -444,8 +446,9 @@ int main(int argc, char** argv) {
               << " m cells), " << sim.backend().name() << ", " << nranks << " rank(s) as " << tiles
               << " tiles, " << (cpu ? opt.threads : 0) << " threads per rank\n"
               << "  " << ms_per_step << " ms/step, " << cells * a.steps / (total_ms * 1e-3) / 1e6
-              << " Mcell-updates/s; avalanching moved sand in " << iters_per_step << " of "
-              << iterations << " iterations per step\n"
+              << " Mcell-updates/s; avalanching moved sand in " << iters_per_step
+              << " iterations per step (at most " << after.avalanche_most << " in a step, cap "
+              << iterations << ", " << after.avalanche_capped_steps << " steps capped)\n"
               << "  first " << a.warmup << " steps (relaxing the random sand): " << warmup_ms
               << " ms/step\n";
     if (nranks > 1)

@@ -472,6 +472,7 @@ class JobRun {
     while (sim_->step_index() < steps_) {
       sim_->step();
       const std::int64_t s = sim_->step_index();
+      warn_if_capped(s);
       const bool last = s == steps_;
       write_due_files(s, last);
       const auto now = Clock::now();
@@ -485,6 +486,18 @@ class JobRun {
       if (next.stop) return stop(s);
     }
     return 0;
+  }
+
+  // The first step whose avalanching reached its safety cap with sand still
+  // moving is said on stderr (every tile knows it alike; rank 0 says it); the
+  // done event counts them all.
+  void warn_if_capped(std::int64_t s) {
+    const StageTimes& t = sim_->times();
+    if (!ctx_.root() || capped_said_ || t.avalanche_capped_steps == 0) return;
+    capped_said_ = true;
+    std::cerr << "erg: step " << s << ": sand avalanching reached model.avalanche_iterations = "
+              << sim_->model().avalanche_iterations
+              << " with sand still moving; slip faces may stand above the repose angle\n";
   }
 
   // Snapshots and checkpoints at the job's cadence, and both at the end.
@@ -653,6 +666,8 @@ class JobRun {
     done.set_peak_rss_bytes_per_cell(static_cast<double>(rss[0]) / cells);
     for (int k = 0; k < kStageCount; ++k)
       (*done.mutable_stage_ms())[kStageNames[k]] = t.ms[static_cast<size_t>(k)];
+    done.set_avalanche_most_iterations(t.avalanche_most);
+    done.set_avalanche_capped_steps(t.avalanche_capped_steps);
     progress_.emit(e);
   }
 
@@ -677,6 +692,7 @@ class JobRun {
   std::unique_ptr<Simulation> sim_;
   std::int64_t steps_ = 0;
   bool steering_ = false, log_steering_ = false;
+  bool capped_said_ = false;        // warn_if_capped said it
   std::vector<SteerFile> steered_;  // rank 0: taken, not yet applied
   Clock::time_point last_report_, last_log_;
   std::int64_t first_ = 0;            // the loop's first step

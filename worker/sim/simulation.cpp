@@ -231,7 +231,12 @@ void Simulation::step() {
   const Refill refill = [&](std::initializer_list<fields::Id> ids, int width) {
     halo.fill(ids, width);
   };
-  times_.avalanche_iterations += backend_->avalanche_sand(refill);
+  const AvalancheResult av = backend_->avalanche_sand(refill);
+  times_.avalanche_iterations += av.moved;
+  times_.avalanche_most = std::max(times_.avalanche_most, av.moved);
+  if (av.capped) {
+    if (times_.avalanche_capped_steps++ == 0) times_.first_capped_step = step_;
+  }
   lap(kAvalanche);
   backend_->avalanche_bedrock(refill);
   lap(kBedrock);

@@ -6,13 +6,19 @@
 // same shares, so they agree to the unit), then the changed heights are
 // recomputed. Heights are read only from the previous iteration.
 //
+// A step iterates until the terrain settles: until an iteration finds no
+// donor, or moves nothing and no larger k_c follows (docs/design.md,
+// "Avalanching until settled"). `iterations` (model.avalanche_iterations) is
+// only a safety cap; a step that reaches it with sand still moving says so
+// (AvalancheResult::capped, the same on every tile).
+//
 // Ghost-zone expansion (docs/design.md, "Tiling"): iterations run in rounds of R;
 // a round starts from layers whose ghosts are filled 2R + 1 cells wide, and
 // its j-th iteration runs on the tile grown by 2(R - j) cells, so after R
 // iterations the owned cells are exact, with no exchange in between. Ghost
 // cells are recomputed exactly as their owners compute them (same inputs,
 // same functions). With several tiles the rounds are kTiledRounds
-// (sim/model.h: 4 iterations, then the rest in one): the first round's ghosts
+// (sim/model.h: 4 iterations, then rounds of 46): the first round's ghosts
 // come with the exchange before reptation, and at a later round boundary the
 // tiles first agree (one logical or) whether any of them still has something
 // to move, so a settled terrain (most steps, after the first few) costs no
@@ -178,9 +184,10 @@ class AvalancheSweep {
         changed_(visit_.size(), 0),
         target_(bedrock ? f.bedrock : f.sand) {}
 
-  // The number of iterations that moved something; `settled`: no donor is
-  // left (nothing exceeds repose).
-  int run(bool* settled) {
+  // The number of iterations that moved something, and whether the cap was
+  // reached with sand still moving; `settled`: no donor is left (nothing
+  // exceeds repose).
+  AvalancheResult run(bool* settled) {
     const int nx = g_.nx, ny = g_.ny;
     round_ = m_.rounds.of(1, iterations_);
     e_ = 2 * round_.length;
@@ -192,11 +199,15 @@ class AvalancheSweep {
     const bool alone = ex_.tiles() == 1;
     bool stopped_here = false;  // nothing moves here before the round ends
     bool no_donors = false;     // ... nor in any later step on this terrain
+    bool stopped = false;       // every tile stopped before the cap
     for (int it = 1; it <= iterations_; ++it) {
       const float kc = avalanching::kc_for(it, iterations_, m_.kc, m_.kc_damped);
       if (it > 1 && it == round_.first + round_.length) {
         if (!alone) {
-          if (!ex_.any(!stopped_here)) break;
+          if (!ex_.any(!stopped_here)) {
+            stopped = true;
+            break;
+          }
           stopped_here = false;
         }
         next_round(it);
@@ -209,7 +220,10 @@ class AvalancheSweep {
         // Every f is 0: nothing exceeds repose (or nothing is available),
         // for any k_c. This and every later iteration are the identity.
         stopped_here = true;
-        if (alone) break;
+        if (alone) {
+          stopped = true;
+          break;
+        }
         continue;
       }
       if (!exchanges(grow2)) {
@@ -217,7 +231,10 @@ class AvalancheSweep {
         // could move them.
         if (!larger_kc_later(it, kc)) {
           stopped_here = true;
-          if (alone) break;
+          if (alone) {
+            stopped = true;
+            break;
+          }
           continue;
         }
         visit_ = positive_;
@@ -229,7 +246,12 @@ class AvalancheSweep {
       next_visit();
     }
     if (settled) *settled = no_donors;
-    return moved_iterations;
+    // At the cap: still moving if the last iteration moved something on any
+    // tile (every tile reaches the cap together: the loop ends early only
+    // on the decision all tiles share). Bedrock runs its few iterations
+    // [N24 3.8] and is not asked.
+    const bool capped = !bedrock_ && !stopped && (alone ? !stopped_here : ex_.any(!stopped_here));
+    return {moved_iterations, capped};
   }
 
  private:
@@ -358,10 +380,9 @@ class AvalancheSweep {
   }
 
   bool larger_kc_later(int it, float kc) const {
-    bool larger = false;
     for (int j = it + 1; j <= iterations_; ++j)
-      larger |= avalanching::kc_for(j, iterations_, m_.kc, m_.kc_damped) > kc;
-    return larger;
+      if (avalanching::kc_for(j, iterations_, m_.kc, m_.kc_damped) > kc) return true;
+    return false;
   }
 
   // New heights where layers changed (after pass 2: it read the old ones).
@@ -403,15 +424,16 @@ class AvalancheSweep {
 
 }  // namespace
 
-int CpuBackend::avalanche(bool bedrock, int iterations, const Refill& refill, bool* settled) {
+AvalancheResult CpuBackend::avalanche(bool bedrock, int iterations, const Refill& refill,
+                                      bool* settled) {
   if (settled) *settled = false;
-  if (iterations <= 0) return 0;
+  if (iterations <= 0) return {};
   const AvalancheLayers layers{f_.bedrock, f_.sand, f_.obstacles, f_.tan_l, h_a_, frac_};
   return AvalancheSweep(m_, g_, threads_, ex_, refill, layers, bedrock, iterations).run(settled);
 }
 
-int CpuBackend::avalanche_sand(const Refill& refill) {
-  if (m_.avalanche_iterations <= 0) return 0;
+AvalancheResult CpuBackend::avalanche_sand(const Refill& refill) {
+  if (m_.avalanche_iterations <= 0) return {};
   return avalanche(false, m_.avalanche_iterations, refill, nullptr);
 }
 

@@ -55,7 +55,7 @@ class CpuBackend final : public Backend {
   void saltation_hop(std::int64_t step) override;
   void saltation_impact(std::int64_t step) override;
   void reptation() override;
-  int avalanche_sand(const Refill& refill) override;
+  AvalancheResult avalanche_sand(const Refill& refill) override;
   void avalanche_bedrock(const Refill& refill) override;
 
   total_t apply_sand_brush(const events::Brush& b) override;
@@ -69,7 +69,7 @@ class CpuBackend final : public Backend {
   // One avalanching sweep structure shared by sand and bedrock (avalanching.cpp).
   // settled (optional): set when an iteration moved nothing and no donor is
   // stuck, i.e. running again on the same heights would be the identity.
-  int avalanche(bool bedrock, int iterations, const Refill& refill, bool* settled);
+  AvalancheResult avalanche(bool bedrock, int iterations, const Refill& refill, bool* settled);
 
   Model m_;
   TileGeom g_;

@@ -8,12 +8,15 @@
 // the tile grown by 2 (R - j) cells, and a new round refills the ghosts of
 // the layer that moves.
 //
-// The CPU stops early once nothing moved and nothing can move later. One
-// tile here runs all iterations (no read-back per iteration): once nothing
-// moves, every donor has f = 0 and out = 0, so pass 2 is the identity and the
-// remaining iterations leave the state unchanged. Each iteration sets a
-// device flag when any donor sends sand; the flags are read back once, and
-// the count of set flags is the CPU's count of iterations that moved sand.
+// A step iterates until settled; model.avalanche_iterations is a safety cap
+// (docs/design.md, "Avalanching until settled"). The CPU stops once nothing
+// moved and nothing can move later. One tile here reads back one flag every
+// kCheckEvery iterations, not every iteration: once an iteration at the
+// largest k_c still to come moves nothing, every donor has f = 0 and out =
+// 0 from then on, so pass 2 is the identity and the iterations run past the
+// CPU's stop leave the state unchanged. Each iteration sets a device flag
+// when any donor sends sand; the flags are read back at the end, and the
+// count of set flags is the CPU's count of iterations that moved sand.
 // Several tiles read back, at each round boundary, whether the last
 // iteration had any donor at all, and stop when no tile had (as the CPU).
 #include <vector>
@@ -25,6 +28,16 @@
 namespace erg::gpu {
 
 namespace {
+
+// One tile: iterations between the read-backs that decide whether to stop.
+constexpr int kCheckEvery = 16;
+
+// Whether an iteration after `it` of `n` runs at a larger k_c than `kc`.
+bool larger_kc_later(int it, int n, float kc, float kc_full, float kc_damped) {
+  for (int j = it + 1; j <= n; ++j)
+    if (avalanching::kc_for(j, n, kc_full, kc_damped) > kc) return true;
+  return false;
+}
 
 // Level-0 heights in metres: b + s for sand, b for bedrock.
 // ghosts_only: the owned cells' heights are current (a new round of the
@@ -97,9 +110,10 @@ __global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h,
 
 }  // namespace
 
-int CudaBackend::avalanche(bool bedrock, int iterations, const Refill& refill, bool* settled) {
+AvalancheResult CudaBackend::avalanche(bool bedrock, int iterations, const Refill& refill,
+                                       bool* settled) {
   if (settled) *settled = false;
-  if (iterations <= 0) return 0;
+  if (iterations <= 0) return {};
   const Offsets off = neighbour_offsets(g_.pitch);
   DeviceBuffer<units_t>& target = bedrock ? d_.bedrock : d_.sand;
   AvalancheRounds::Round round = m_.rounds.of(1, iterations);
@@ -115,7 +129,21 @@ int CudaBackend::avalanche(bool bedrock, int iterations, const Refill& refill, b
 
   const float kc_full = m_.kc;
   int ran = iterations;
+  bool stopped = false;  // stopped before the cap (on every tile alike)
   for (int it = 1; it <= iterations; ++it) {
+    if (alone && it > 1 && (it - 1) % kCheckEvery == 0) {
+      // Iteration it - 1 moved nothing, and no larger k_c follows: every
+      // later iteration is the identity.
+      int moved_last = 0;
+      ERG_CUDA_CHECK(
+          cudaMemcpy(&moved_last, moved_.get() + (it - 2), sizeof(int), cudaMemcpyDeviceToHost));
+      const float kc_last = avalanching::kc_for(it - 1, iterations, kc_full, m_.kc_damped);
+      if (moved_last == 0 && !larger_kc_later(it - 1, iterations, kc_last, kc_full, m_.kc_damped)) {
+        ran = it - 1;
+        stopped = true;
+        break;
+      }
+    }
     if (it > 1 && it == round.first + round.length) {
       if (!alone) {
         int donors = 0;
@@ -123,6 +151,7 @@ int CudaBackend::avalanche(bool bedrock, int iterations, const Refill& refill, b
                                   cudaMemcpyDeviceToHost));
         if (!ex_.any(donors != 0)) {
           ran = it - 1;
+          stopped = true;
           break;
         }
       }
@@ -168,6 +197,13 @@ int CudaBackend::avalanche(bool bedrock, int iterations, const Refill& refill, b
       cudaMemcpy(flags.data(), moved_.get(), sizeof(int) * flags.size(), cudaMemcpyDeviceToHost));
   int moved_iterations = 0;
   for (const int f : flags) moved_iterations += f != 0 ? 1 : 0;
+  // At the cap with sand still moving (on any tile: every tile reaches the
+  // cap together). Bedrock runs its few iterations [N24 3.8] and is not asked.
+  bool capped = false;
+  if (!bedrock && !stopped) {
+    const bool here = !flags.empty() && flags.back() != 0;
+    capped = alone ? here : ex_.any(here);
+  }
   if (settled && ran > 0) {
     // The last iteration run had no donor: nothing here exceeds repose, so
     // the same avalanche on the same terrain is the identity.
@@ -176,11 +212,11 @@ int CudaBackend::avalanche(bool bedrock, int iterations, const Refill& refill, b
                               cudaMemcpyDeviceToHost));
     *settled = donors == 0;
   }
-  return moved_iterations;
+  return {moved_iterations, capped};
 }
 
-int CudaBackend::avalanche_sand(const Refill& refill) {
-  if (m_.avalanche_iterations <= 0) return 0;
+AvalancheResult CudaBackend::avalanche_sand(const Refill& refill) {
+  if (m_.avalanche_iterations <= 0) return {};
   return avalanche(false, m_.avalanche_iterations, refill);
 }
 

@@ -215,7 +215,7 @@ class CudaBackend final : public Backend {
   void saltation_hop(std::int64_t step) override;                                  // saltation.cu
   void saltation_impact(std::int64_t step) override;                               // saltation.cu
   void reptation() override;                                                       // reptation.cu
-  int avalanche_sand(const Refill& refill) override;                               // avalanching.cu
+  AvalancheResult avalanche_sand(const Refill& refill) override;                   // avalanching.cu
   void avalanche_bedrock(const Refill& refill) override;                           // avalanching.cu
 
   total_t apply_sand_brush(const events::Brush& b) override;
@@ -228,9 +228,9 @@ class CudaBackend final : public Backend {
  private:
   void update_repose();  // tan_l from vegetation
   // `settled` (if given): the last iteration found no donor on this tile.
-  int avalanche(bool bedrock, int iterations, const Refill& refill,
-                bool* settled = nullptr);  // avalanching.cu
-  void coarse_gradients();                 // wind.cu: window_ -> grad_x_, grad_y_
+  AvalancheResult avalanche(bool bedrock, int iterations, const Refill& refill,
+                            bool* settled = nullptr);  // avalanching.cu
+  void coarse_gradients();                             // wind.cu: window_ -> grad_x_, grad_y_
   // Per-row partial sums: copy the first `count` of row_sums_ to the host,
   // then add host_rows_[first, first + count) in a fixed order.
   void fetch_rows(int count);
