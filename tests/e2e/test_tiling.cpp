@@ -291,7 +291,8 @@ TEST(Tiling, SettlingAColumnAcrossTileCornersGivesTheSameBits) {
   write(t / "settle.json", R"({"domain": {"nx": 200, "ny": 192, "cell_size_m": 0.5},
  "layers": {"sand": {"piles": [{"x_m": 50, "y_m": 48, "height": 10, "radius_m": 6, "shape": "CYLINDER"}]}},
  "wind": {"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.31, "direction_deg": 30}},
- "transport": "STOCHASTIC", "seed": 5, "model": {"slab_m": 0.05, "reptation_k": 0.2},
+ "transport": "STOCHASTIC", "seed": 5,
+ "model": {"slab_m": 0.05, "reptation_k": 0.2, "avalanche_iterations": 10000},
  "run": {"steps": 4, "snapshot_every": 2}})");
   Result r = run(worker_on(1, (t / "settle.json") + " --out " + (t / "one") + " --progress-fd 1"));
   ASSERT_EQ(r.code, 0) << r.output;

@@ -216,7 +216,7 @@ TEST(Exactness, SettlingIsThreadAndRoundInvariant) {
     "layers": {"sand": {"piles": [{"x_m": 20, "y_m": 16, "height": 10, "radius_m": 6,
                                    "shape": "CYLINDER"}]}},
     "wind": {"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.31, "direction_deg": 30}},
-    "transport": "STOCHASTIC", "seed": 3, "model": {"slab_m": 0.05, "reptation_k": 0.2},
+    "transport": "STOCHASTIC", "seed": 3, "model": {"slab_m": 0.05, "reptation_k": 0.2, "avalanche_iterations": 10000},
     "run": {"steps": 4}})";
   auto run = [&](int threads, AvalancheRounds rounds) {
     Placement place;
