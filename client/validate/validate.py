@@ -110,6 +110,14 @@ class Report:
     def add(self, *lines):
         self.lines.extend(lines)
 
+    def plot(self, fig, name, alt, dpi=110):
+        """Writes the figure to plots/NAME and links it here."""
+        import matplotlib.pyplot as plt
+        fig.tight_layout()
+        fig.savefig(plot_path(self.out, name), dpi=dpi)
+        plt.close(fig)
+        self.add(f"![{alt}](plots/{name})", "")
+
     def law(self, name, ok, measured):
         self.summary.append((name, ok, measured))
 
@@ -273,10 +281,7 @@ def barchan_laws(rep, T, run_dir, job):
         ax.set_ylabel("migration speed (m/yr)")
         ax.legend(fontsize=7)
         ax.set_title("Barchan speed against height")
-        fig.tight_layout()
-        fig.savefig(plot_path(rep.out, "barchan_speed.png"), dpi=110)
-        plt.close(fig)
-        rep.add("![barchan speed](plots/barchan_speed.png)", "")
+        rep.plot(fig, "barchan_speed.png", "barchan speed", dpi=110)
         rep.law("Barchan speed c = a Q / (H + H0)", ok_speed,
                 f"slope {slope:.2f} over H >= {S['min_height_m']:g} m (expected -1 +/- {S['tolerance']:g}); "
                 + (f"c H / Q_sat spread {100 * spread:.0f}%" if qsat else "no Q_sat (model units)"))
@@ -341,10 +346,7 @@ def barchan_laws(rep, T, run_dir, job):
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(f"Barchans at step {last['step']} (+: centroids)")
-    fig.tight_layout()
-    fig.savefig(plot_path(rep.out, "barchans.png"), dpi=110)
-    plt.close(fig)
-    rep.add("![barchans](plots/barchans.png)", "")
+    rep.plot(fig, "barchans.png", "barchans", dpi=110)
     rep.add(f"Source: {B['source']}.", "")
 
     # --- 6 (data): migration rate
@@ -399,10 +401,7 @@ def migration_law(rep, T, rows, job):
     ax.set_xlabel("dune width W (m)")
     ax.set_ylabel("migration (m/yr)")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(plot_path(rep.out, "migration_rate.png"), dpi=110)
-    plt.close(fig)
-    rep.add("![migration rate](plots/migration_rate.png)", "")
+    rep.plot(fig, "migration_rate.png", "migration rate", dpi=110)
     rep.add(f"Source: {R['source']}.", "")
     rep.law("Migration rate against Tarfaya", ok, f"erg / field {min(ratios):.2f}-{max(ratios):.2f}")
 
@@ -443,10 +442,7 @@ def flux_law(rep, T, cal, job):
     ax.set_xlabel("u* (m/s)")
     ax.set_ylabel("bulk flux (m^2/yr)")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(plot_path(rep.out, "flux_law.png"), dpi=110)
-    plt.close(fig)
-    rep.add("![flux law](plots/flux_law.png)", "")
+    rep.plot(fig, "flux_law.png", "flux law", dpi=110)
     rep.add(f"Source: {F['source']}.", "")
     rep.law("Flat-bed flux follows the law", ok, f"worst {100 * worst:.2f}% from 1.1 to 3 u_t")
 
@@ -532,10 +528,7 @@ def slip_face_law(rep, T, barchan_snaps, finals, repose, job):
     ax.set_ylabel("cells")
     ax.legend()
     ax.set_title("Lee slopes of the barchans")
-    fig.tight_layout()
-    fig.savefig(plot_path(rep.out, "lee_slopes.png"), dpi=110)
-    plt.close(fig)
-    rep.add("![lee slopes](plots/lee_slopes.png)", "")
+    rep.plot(fig, "lee_slopes.png", "lee slopes", dpi=110)
     rep.add(f"Source: {S['source']}.", "")
     rep.law("Slip faces at repose", ok_peak and ok_max, f"lee mode {plo:.1f}-{phi:.1f} deg, steepest {worst:.2f} deg")
 
@@ -615,10 +608,7 @@ def transverse_law(rep, T, scenes):
     axes[-1].set_ylabel("radial power (normalised)")
     axes[-1].legend()
     axes[-1].set_title("Spectra (dashed: measured wavelength)")
-    fig.tight_layout()
-    fig.savefig(plot_path(rep.out, "transverse.png"), dpi=90)
-    plt.close(fig)
-    rep.add("![transverse](plots/transverse.png)", "")
+    rep.plot(fig, "transverse.png", "transverse", dpi=90)
     rep.add(f"Source: {R['source']}.", "")
     rep.law("Transverse crests perpendicular", ok_angle, f"worst crest-wind angle {worst_angle:.1f} deg")
     rep.law("Transverse wavelength resolution-independent", ok_wl,
@@ -735,10 +725,7 @@ def isotropy_law(rep, T, scenes):
     ax.set_ylabel("across the wind (m, left positive)")
     ax.set_title("Pile centroid in the wind's frame")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(plot_path(rep.out, "isotropy.png"), dpi=90)
-    plt.close(fig)
-    rep.add("![isotropy](plots/isotropy.png)", "")
+    rep.plot(fig, "isotropy.png", "isotropy", dpi=90)
     rep.add(f"Source: {I['source']}.", "")
     for mode, ok, worst in laws:
         lost = [f"{r['wind']:g}" for r in rows if r["mode"] == mode and not r["dist"] == r["dist"]]
