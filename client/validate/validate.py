@@ -258,7 +258,7 @@ def barchan_laws(rep, T, run_dir, job):
                 f"Expected a = {S['expected_slope']:g} +/- {S['tolerance']:g}. {verdict(ok_slope)}: the exponent is "
                 f"{abs(dev):.2f} {'above' if dev > 0 else 'below'} the expected value"
                 + ("" if ok_slope else f", {abs(dev) - S['tolerance']:.2f} outside the tolerance") + ".", "")
-        rep.add(f"Dimensionless rate c H / Q_sat over the same dunes: "
+        rep.add("Dimensionless rate c H / Q_sat over the same dunes: "
                 + (f"{min(rates):.3f}-{max(rates):.3f}, a spread of **{100 * spread:.0f}%** of the mean "
                    f"(allowed {100 * S['max_rate_spread']:.0f}%). {verdict(ok_rate)}." if qsat else
                    f"not measured: the scene's wind is in model units (no Q_sat). {verdict(False)}."), "")
