@@ -616,11 +616,6 @@ def transverse_law(rep, T, scenes):
             + " per halving (" + " -> ".join(f"{r['cell']:g}" for r in res) + " m)")
 
 
-def angle_diff_deg(a, b):
-    """a - b wrapped into [-180, 180)."""
-    return (a - b + 180.0) % 360.0 - 180.0
-
-
 def isotropy_law(rep, T, scenes):
     """scenes: (name, snapshots, job): one pile, the same wind at angles to the grid."""
     import math
@@ -683,7 +678,8 @@ def isotropy_law(rep, T, scenes):
         if xs:
             dx, dy = xs[-1] - xs[0], ys[-1] - ys[0]
             direction = math.degrees(math.atan2(dy, dx)) % 360.0
-            row.update(dist=math.hypot(dx, dy), dir=direction, err=angle_diff_deg(direction, wind),
+            row.update(dist=math.hypot(dx, dy), dir=direction,
+                       err=M.wrap_delta(direction - wind, 360.0),
                        speed=M.migration_speed((xs, ys), [s["step"] for s in window], wind))
         rows.append(row)
     for r in rows:

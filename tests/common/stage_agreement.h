@@ -21,6 +21,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "core/fields.h"
@@ -85,12 +86,6 @@ long differing(const T* a, const T* b, std::size_t n, std::size_t* first, double
   return count;
 }
 
-// The owned cells of a state field (units or reals), row-major.
-template <class T>
-std::vector<T> owned_state(const Field<T>& f) {
-  return owned_cells(f);
-}
-
 }  // namespace detail
 
 // The first difference of `got` from `want` that the bounds do not allow,
@@ -105,21 +100,17 @@ inline std::string stage_mismatch(const StageResult& want, const StageResult& go
     std::size_t first = 0, cells = 0;
     double max_abs = 0;
     long count = 0;
-    if (f.state && f.type == fields::Type::kUnits) {
-      const auto x = detail::owned_state(want.state.units[id]);
-      const auto y = detail::owned_state(got.state.units[id]);
+    const auto compare = [&](const auto& x, const auto& y) {
       cells = x.size();
       count = detail::differing(x.data(), y.data(), cells, &first, &max_abs);
+    };
+    if (f.state && f.type == fields::Type::kUnits) {
+      compare(owned_cells(want.state.units[id]), owned_cells(got.state.units[id]));
       max_abs = units_to_m_d(static_cast<units_t>(max_abs));
     } else if (f.state) {
-      const auto x = detail::owned_state(want.state.reals[id]);
-      const auto y = detail::owned_state(got.state.reals[id]);
-      cells = x.size();
-      count = detail::differing(x.data(), y.data(), cells, &first, &max_abs);
+      compare(owned_cells(want.state.reals[id]), owned_cells(got.state.reals[id]));
     } else {
-      cells = want.derived[i].size();
-      count =
-          detail::differing(want.derived[i].data(), got.derived[i].data(), cells, &first, &max_abs);
+      compare(want.derived[i], got.derived[i]);
     }
     if (count == 0) continue;
     const FieldBound* bound = nullptr;

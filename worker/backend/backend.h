@@ -56,9 +56,8 @@ inline void check_owned_upload(fields::Id id, const std::vector<float>& in, cons
 }
 
 // What a step's sand avalanching did: the iterations that moved sand, and
-// whether it reached model.avalanche_iterations with sand still moving (the
-// safety cap: a step normally stops when the terrain settles, far below it;
-// the same on every tile).
+// whether it reached model.avalanche_iterations, the cap, with sand still
+// moving (the same on every tile).
 struct AvalancheResult {
   int moved = 0;
   bool capped = false;

@@ -709,7 +709,8 @@ std::vector<std::string> cross_field_problems(const JobSpec& spec, const std::st
   // depend on the model's lengths only; each side must hold whole ones.
   if (l > 0 && m.warp_large_radius_m() > 0 && m.warp_small_radius_m() > 0) {
     const double max_coarse_m =
-        0.25 * 0.5 * std::min(m.warp_large_radius_m(), m.warp_small_radius_m());
+        wind_warping::max_coarse_m(wind_warping::sigma_of_radius(m.warp_large_radius_m()),
+                                   wind_warping::sigma_of_radius(m.warp_small_radius_m()));
     const long long c = wind_warping::coarse_factor(l, max_coarse_m);
     for (const auto& [name, n] :
          {std::pair<const char*, long long>{"domain.nx", d.nx()}, {"domain.ny", d.ny()}})

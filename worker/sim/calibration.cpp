@@ -38,9 +38,8 @@ erg::v1::JobSpec flat_bed_job(const erg::v1::JobSpec& spec, double ustar, double
   // torus must be a multiple of it (stages/wind_warping.h, coarse_factor).
   const auto& m = spec.model();
   const long long cells = std::max<long long>(
-      kCells, wind_warping::coarse_factor(
-                  spec.domain().cell_size_m(),
-                  0.125 * std::min(m.warp_large_radius_m(), m.warp_small_radius_m())));
+      kCells, wind_warping::coarse_factor_of_radii(
+                  spec.domain().cell_size_m(), m.warp_large_radius_m(), m.warp_small_radius_m()));
   j.mutable_domain()->set_nx(cells);
   j.mutable_domain()->set_ny(cells);
   j.mutable_domain()->set_cell_size_m(spec.domain().cell_size_m());

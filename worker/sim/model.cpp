@@ -30,10 +30,11 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
   md.warp.gradient_scale = static_cast<float>(m.warp_gradient_scale());
 
   const int gnx = static_cast<int>(spec.domain().nx()), gny = static_cast<int>(spec.domain().ny());
-  // "We use r = 2 sigma" [N24 3.3]. The coarse cells depend on the model's
-  // lengths only; validation makes the domain a multiple of them.
-  md.coarse = wind_warping::coarse_grid(gnx, gny, l, 0.5 * m.warp_large_radius_m(),
-                                        0.5 * m.warp_small_radius_m());
+  // The coarse cells depend on the model's lengths only; validation makes
+  // the domain a multiple of them.
+  md.coarse =
+      wind_warping::coarse_grid(gnx, gny, l, wind_warping::sigma_of_radius(m.warp_large_radius_m()),
+                                wind_warping::sigma_of_radius(m.warp_small_radius_m()));
   if (gnx % md.coarse.cx != 0 || gny % md.coarse.cy != 0)
     throw std::invalid_argument("domain.nx and domain.ny must be multiples of " +
                                 std::to_string(md.coarse.cx) +

@@ -56,9 +56,9 @@ constexpr AvalancheRounds kOneTileRounds{1, 1};
 // after the first round with one logical or: the tiles exchange a 9-cell
 // halo before reptation. When sand keeps moving, each later round refills
 // a halo of 2 x 46 + 1 = 93 cells once. Avalanching iterates until the
-// terrain settles (model.avalanche_iterations is only a safety cap, far
-// above what steps need), so the later rounds have a fixed length instead
-// of "the rest in one", which would size the halo by the cap: 46 keeps the
+// terrain settles or model.avalanche_iterations (a cap a job may raise to
+// thousands), so the later rounds have a fixed length instead of "the
+// rest in one", which would size the halo by the cap: 46 keeps the
 // halo and the exchanges of a step that settles within [N24]'s typical 50
 // iterations what they were when 50 was the budget (4 + 46).
 constexpr AvalancheRounds kTiledRounds{4, 46};

@@ -488,13 +488,12 @@ class JobRun {
     return 0;
   }
 
-  // The first step whose avalanching reached its safety cap with sand still
+  // The first step whose avalanching reached its cap with sand still
   // moving is said on stderr (every tile knows it alike; rank 0 says it); the
   // done event counts them all.
   void warn_if_capped(std::int64_t s) {
-    const StageTimes& t = sim_->times();
-    if (!ctx_.root() || capped_said_ || t.avalanche_capped_steps == 0) return;
-    capped_said_ = true;
+    // The step that just ran (index s - 1) is the first capped one.
+    if (!ctx_.root() || sim_->times().first_capped_step != s - 1) return;
     std::cerr << "erg: step " << s << ": sand avalanching reached model.avalanche_iterations = "
               << sim_->model().avalanche_iterations
               << " with sand still moving; slip faces may stand above the repose angle\n";
@@ -692,7 +691,6 @@ class JobRun {
   std::unique_ptr<Simulation> sim_;
   std::int64_t steps_ = 0;
   bool steering_ = false, log_steering_ = false;
-  bool capped_said_ = false;        // warn_if_capped said it
   std::vector<SteerFile> steered_;  // rank 0: taken, not yet applied
   Clock::time_point last_report_, last_log_;
   std::int64_t first_ = 0;            // the loop's first step

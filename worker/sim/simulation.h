@@ -49,7 +49,7 @@ struct StageTimes {
   long long avalanche_iterations = 0;  // iterations that moved sand
   int avalanche_most = 0;              // the most of them in one step
   // Steps whose sand avalanching reached model.avalanche_iterations (the
-  // safety cap) with sand still moving, and the first of them (-1: none).
+  // cap) with sand still moving, and the first of them (-1: none).
   long long avalanche_capped_steps = 0;
   std::int64_t first_capped_step = -1;
 };

@@ -182,6 +182,21 @@ inline int coarse_factor(double cell_m, double max_m) {
   while (2.0 * c * cell_m <= max_m && c < (1 << 20)) c *= 2;
   return c;
 }
+// The widest coarse cell the two smoothing scales allow: a quarter of the
+// smaller sigma.
+inline double max_coarse_m(double sigma_large_m, double sigma_small_m) {
+  return 0.25 * (sigma_large_m < sigma_small_m ? sigma_large_m : sigma_small_m);
+}
+// A smoothing radius of the job (model.warp_*_radius_m) as a sigma: "we use
+// r = 2 sigma" [N24 3.3].
+inline double sigma_of_radius(double radius_m) {
+  return 0.5 * radius_m;
+}
+// The coarse factor of a job's two warping radii.
+inline int coarse_factor_of_radii(double cell_m, double large_radius_m, double small_radius_m) {
+  return coarse_factor(
+      cell_m, max_coarse_m(sigma_of_radius(large_radius_m), sigma_of_radius(small_radius_m)));
+}
 
 // The coarse grid of a domain (host): factors, kernel radii and halo.
 inline CoarseGrid coarse_grid(int gnx, int gny, double cell_m, double sigma_large_m,
@@ -190,8 +205,7 @@ inline CoarseGrid coarse_grid(int gnx, int gny, double cell_m, double sigma_larg
   c.sigma_m[0] = sigma_large_m;
   c.sigma_m[1] = sigma_small_m;
   c.cell_m = cell_m;
-  c.cx = c.cy =
-      coarse_factor(cell_m, 0.25 * (sigma_large_m < sigma_small_m ? sigma_large_m : sigma_small_m));
+  c.cx = c.cy = coarse_factor(cell_m, max_coarse_m(sigma_large_m, sigma_small_m));
   c.nx = gnx / c.cx;
   c.ny = gny / c.cy;
   c.halo_x = c.halo_y = 0;

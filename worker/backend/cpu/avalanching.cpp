@@ -8,8 +8,8 @@
 //
 // A step iterates until the terrain settles: until an iteration finds no
 // donor, or moves nothing and no larger k_c follows (docs/design.md,
-// "Avalanching until settled"). `iterations` (model.avalanche_iterations) is
-// only a safety cap; a step that reaches it with sand still moving says so
+// "Avalanching until settled"). `iterations` (model.avalanche_iterations,
+// [N24]'s 50 by default) caps it; a step that reaches it with sand still moving says so
 // (AvalancheResult::capped, the same on every tile).
 //
 // Ghost-zone expansion (docs/design.md, "Tiling"): iterations run in rounds of R;

@@ -8,7 +8,7 @@
 // the tile grown by 2 (R - j) cells, and a new round refills the ghosts of
 // the layer that moves.
 //
-// A step iterates until settled; model.avalanche_iterations is a safety cap
+// A step iterates until settled or model.avalanche_iterations, the cap
 // (docs/design.md, "Avalanching until settled"). The CPU stops once nothing
 // moved and nothing can move later. One tile here reads back one flag every
 // kCheckEvery iterations, not every iteration: once an iteration at the
