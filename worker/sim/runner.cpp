@@ -37,6 +37,17 @@ extern "C" void on_signal(int sig) {
   g_signal.store(sig);
 }
 
+// A line on stderr in one write. Under mpirun, rank 0's stdout (the
+// progress events) and stderr are forwarded apart and merged by whoever
+// reads them, so a line written in pieces (std::cerr writes each << at
+// once) can be cut by an event line, which then no longer parses.
+template <class... Parts>
+void log_line(const Parts&... parts) {
+  std::ostringstream o;
+  (o << ... << parts);
+  std::cerr << o.str();
+}
+
 // The worker's events (proto/erg/v1/worker.proto), one line each on the
 // progress descriptor; rank 0 only (the others hold fd -1).
 class Progress {
@@ -251,9 +262,7 @@ std::vector<SteerFile> collect_steering(const std::string& dir, const erg::v1::J
         continue;
       }
       mark_steer_file(dir, name, ".rejected");
-      if (log)
-        std::cerr << "erg: steering " << name << " rejected at step " << step << ": " << reason
-                  << "\n";
+      if (log) log_line("erg: steering ", name, " rejected at step ", step, ": ", reason, "\n");
       erg::v1::WorkerEvent ev;
       ev.set_step(step);
       ev.mutable_steer_rejected()->set_file(job::valid_utf8(name));
@@ -494,9 +503,9 @@ class JobRun {
   void warn_if_capped(std::int64_t s) {
     // The step that just ran (index s - 1) is the first capped one.
     if (!ctx_.root() || sim_->times().first_capped_step != s - 1) return;
-    std::cerr << "erg: step " << s << ": sand avalanching reached model.avalanche_iterations = "
-              << sim_->model().avalanche_iterations
-              << " with sand still moving; slip faces may stand above the repose angle\n";
+    log_line("erg: step ", s, ": sand avalanching reached model.avalanche_iterations = ",
+             sim_->model().avalanche_iterations,
+             " with sand still moving; slip faces may stand above the repose angle\n");
   }
 
   // Snapshots and checkpoints at the job's cadence, and both at the end.
@@ -547,8 +556,7 @@ class JobRun {
     for (const auto& f : steered_) {
       mark_steer_file(cfg_.steer_dir, f.name, ".applied");
       if (log_steering_)
-        std::cerr << "erg: steering " << f.name << " applied at step " << sim_->step_index()
-                  << "\n";
+        log_line("erg: steering ", f.name, " applied at step ", sim_->step_index(), "\n");
       erg::v1::WorkerEvent e;
       e.set_step(sim_->step_index());
       e.mutable_steered()->set_file(job::valid_utf8(f.name));
@@ -563,8 +571,8 @@ class JobRun {
     write_checkpoint(*sim_, cfg_.out_dir, ctx_);
     const int sig = bcast(g_signal.load(), ctx_);
     if (ctx_.root()) {
-      std::cerr << "erg: stopped by signal " << sig << " at step " << s
-                << "; checkpoint written, resume with --resume\n";
+      log_line("erg: stopped by signal ", sig, " at step ", s,
+               "; checkpoint written, resume with --resume\n");
       erg::v1::WorkerEvent e;
       e.set_step(s);
       e.mutable_stopped()->set_signal(sig);
