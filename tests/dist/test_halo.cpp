@@ -9,16 +9,24 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
+#include <variant>
 #include <vector>
 
 #include "dist/decomposition.h"
 #include "dist/halo.h"
 #include "dist/halo_frame.h"
+#include "dist/halo_path.h"
 #include "dist/mpi_exchange.h"
+
+#if __has_include(<mpi-ext.h>)
+#include <mpi-ext.h>
+#endif
 
 namespace erg::dist {
 namespace {
@@ -502,6 +510,246 @@ TEST_P(Halo, InvalidWidthsThrowOnEveryRank) {
   f = fill_input<double>(s.g);
   hx.fill(f, s.max_width());
   expect_filled(f, s.max_width(), "fill after errors");
+}
+
+// ---- a device backend's two paths (dist/halo_path.h) --------------------------
+
+// The host-staged path, step by step as the CUDA backend takes it, with host
+// fields standing for the device's: two fields of different types and
+// widths share one staging buffer (frame_layout); a split fill downloads at
+// begin_fill, exchanges and uploads at finish_fill; a fill's upload writes
+// the ghosts only. The device fields end as the exchange of the whole fields
+// leaves them, bit for bit, and the staged bytes are staged_bytes'.
+class StagedDevice {
+ public:
+  StagedDevice(HaloExchanger& hx, const TileGeom& g, int w64, int w32)
+      : hx_(hx), g_(g), host64_(g, marker<std::int64_t>() + 1), host32_(g, marker<float>() + 1) {
+    const int widths[2] = {w64, w32};
+    const std::size_t elems[2] = {sizeof(std::int64_t), sizeof(float)};
+    layout_ = frame_layout(g, widths, elems);
+    pinned_.assign(layout_.bytes, 0);
+    list_[0] = {&host64_, w64};
+    list_[1] = {&host32_, w32};
+  }
+  // One ghost operation on the "device" fields d64 and d32.
+  void run(GhostOp op, Field<std::int64_t>& d64, Field<float>& d32) {
+    const StagingSteps s = staging_steps(op);
+    if (s.download) {
+      pack_frame(d64, layout_.slots[0].frame, at<std::int64_t>(0));
+      pack_frame(d32, layout_.slots[1].frame, at<float>(1));
+      staged += staged_bytes({true, false, GhostOp::kFill, false, false}, layout_);
+    }
+    if (s.exchange) {
+      unpack_frame(at<std::int64_t>(0), layout_.slots[0].frame, host64_);
+      unpack_frame(at<float>(1), layout_.slots[1].frame, host32_);
+      if (s.exchange_op == GhostOp::kSum)
+        hx_.sum(list_);
+      else
+        hx_.fill(list_);
+    }
+    if (s.upload) {
+      pack_frame(host64_, layout_.slots[0].frame, at<std::int64_t>(0));
+      pack_frame(host32_, layout_.slots[1].frame, at<float>(1));
+      unpack_frame(at<std::int64_t>(0), layout_.slots[0].frame, d64, s.ghosts_only);
+      unpack_frame(at<float>(1), layout_.slots[1].frame, d32, s.ghosts_only);
+      staged += staged_bytes({false, false, GhostOp::kFill, true, false}, layout_);
+    }
+  }
+  const FrameLayout& layout() const { return layout_; }
+  long long staged = 0;
+
+ private:
+  template <class T>
+  T* at(int slot) {
+    return reinterpret_cast<T*>(pinned_.data() +
+                                layout_.slots[static_cast<std::size_t>(slot)].offset);
+  }
+  HaloExchanger& hx_;
+  TileGeom g_;
+  Field<std::int64_t> host64_;
+  Field<float> host32_;
+  FrameLayout layout_;
+  std::vector<unsigned char> pinned_;
+  Ghosts list_[2];
+};
+
+// The owned cells within w of the edge set to the marker: an upload that
+// wrote them would show.
+template <class T>
+void mark_owned_frame(Field<T>& f, int w) {
+  const TileGeom& g = f.geom();
+  const HaloFrame fr{g.nx, g.ny, w};
+  for (std::size_t i = 0; i < fr.size(); ++i) {
+    int x, y;
+    fr.cell(i, x, y);
+    if (fr.owned(x, y)) f(x, y) = marker<T>();
+  }
+}
+
+template <class T>
+void expect_same(const Field<T>& got, const Field<T>& want, const std::string& what) {
+  EXPECT_EQ(std::memcmp(got.data(), want.data(), got.size() * sizeof(T)), 0) << what;
+}
+
+TEST_P(Halo, StagedStepsGiveTheExchangeOfTheWholeFields) {
+  const TileSetup s(GetParam());
+  HaloExchanger hx(s.cart, s.g);
+  const int w64 = s.max_width(), w32 = std::max(1, s.max_width() - 1);
+  StagedDevice dev(hx, s.g, w64, w32);
+  const long long frames = static_cast<long long>(dev.layout().payload);
+  // Fill and split fill.
+  for (const bool split : {false, true}) {
+    Field<std::int64_t> d64 = fill_input<std::int64_t>(s.g), want64 = d64;
+    Field<float> d32 = fill_input<float>(s.g), want32 = d32;
+    hx.fill(want64, w64);
+    hx.fill(want32, w32);
+    dev.staged = 0;
+    if (split) {
+      dev.run(GhostOp::kBeginFill, d64, d32);
+      // Interior work runs here; the upload must not write owned cells.
+      mark_owned_frame(d64, w64);
+      mark_owned_frame(d32, w32);
+      mark_owned_frame(want64, w64);
+      mark_owned_frame(want32, w32);
+      dev.run(GhostOp::kFinishFill, d64, d32);
+    } else {
+      dev.run(GhostOp::kFill, d64, d32);
+    }
+    const std::string what = split ? "split fill" : "fill";
+    expect_same(d64, want64, what + " int64");
+    expect_same(d32, want32, what + " float");
+    EXPECT_EQ(dev.staged, 2 * frames) << what;
+  }
+  // Sum (the frames' owned cells change: uploaded whole).
+  Field<std::int64_t> d64 = sum_input<std::int64_t>(s, s.i, s.j, w64), want64 = d64;
+  Field<float> d32 = sum_input<float>(s, s.i, s.j, w32), want32 = d32;
+  hx.sum(want64, w64);
+  hx.sum(want32, w32);
+  dev.staged = 0;
+  dev.run(GhostOp::kSum, d64, d32);
+  expect_same(d64, want64, "sum int64");
+  expect_same(d32, want32, "sum float");
+  EXPECT_EQ(dev.staged, 2 * frames);
+}
+
+// The device-direct path's protocol with host memory standing for device
+// memory: a packer that reads and writes only the fields' "device" copies
+// (Ghosts::device: raw storage in the TileGeom layout, as the CUDA
+// backend's buffers) and its own message buffers. The exchange must route
+// every cell through it (the host fields stay as they were) and give the
+// same bits as the host exchange.
+class CopyPacker final : public HaloPacker {
+ public:
+  char* buffer(int slot, std::size_t bytes) override {
+    std::vector<char>& b = buf_[slot];
+    if (b.size() < bytes) b.resize(bytes);
+    return b.data();
+  }
+  void pack(std::span<const Ghosts> parts, const RectOf& rect, char* p) override {
+    each_row(parts, rect, [&](auto* cell, int n) {
+      const std::size_t bytes = static_cast<std::size_t>(n) * sizeof(*cell);
+      std::memcpy(p, cell, bytes);
+      p += bytes;
+    });
+  }
+  void unpack(std::span<const Ghosts> parts, const RectOf& rect, const char* p, bool add) override {
+    each_row(parts, rect, [&](auto* cell, int n) {
+      for (int x = 0; x < n; ++x, p += sizeof(*cell)) {
+        std::remove_reference_t<decltype(*cell)> v;
+        std::memcpy(&v, p, sizeof v);
+        cell[x] = add ? cell[x] + v : v;
+      }
+    });
+  }
+  void zero(std::span<const Ghosts> parts, const RectOf& rect) override {
+    each_row(parts, rect, [&](auto* cell, int n) {
+      for (int x = 0; x < n; ++x) cell[x] = {};
+    });
+  }
+  void ready() override { ++ready_calls; }
+  int ready_calls = 0;
+
+ private:
+  // f(first cell of the row, cells) for every row of every field's rectangle.
+  template <class F>
+  static void each_row(std::span<const Ghosts> parts, const RectOf& rect, F&& f) {
+    for (const Ghosts& g : parts) {
+      if (g.width <= 0) continue;
+      std::visit(
+          [&](auto* host) {
+            using T = typename std::remove_reference_t<decltype(*host)>::value_type;
+            T* base = static_cast<T*>(g.device);
+            const TileGeom& geo = host->geom();
+            const Rect r = rect(g.width);
+            for (int y = r.y0; y < r.y1; ++y) f(base + geo.at(r.x0, y), r.x1 - r.x0);
+          },
+          g.field);
+    }
+  }
+  std::vector<char> buf_[8];
+};
+
+TEST_P(Halo, PackerMovesTheDeviceCopiesOnly) {
+  const TileSetup s(GetParam());
+  HaloExchanger hx(s.cart, s.g);
+  CopyPacker packer;
+  const int w = s.max_width();
+  for (const GhostOp op : {GhostOp::kFill, GhostOp::kBeginFill, GhostOp::kSum}) {
+    const bool sum = op == GhostOp::kSum;
+    Field<std::int64_t> d64 = sum ? sum_input<std::int64_t>(s, s.i, s.j, w)
+                                  : fill_input<std::int64_t>(s.g),
+                        want64 = d64;
+    Field<float> d32 = sum ? sum_input<float>(s, s.i, s.j, w) : fill_input<float>(s.g),
+                 want32 = d32;
+    if (sum) {
+      hx.sum(want64, w);
+      hx.sum(want32, w);
+    } else {
+      hx.fill(want64, w);
+      hx.fill(want32, w);
+    }
+    // The host fields only name type and geometry: never read, never written.
+    Field<std::int64_t> name64(s.g, marker<std::int64_t>());
+    Field<float> name32(s.g, marker<float>());
+    const Field<std::int64_t> name64_before = name64;
+    const Field<float> name32_before = name32;
+    const Ghosts list[2] = {{&name64, w, d64.data()}, {&name32, w, d32.data()}};
+    hx.set_packer(&packer);
+    packer.ready_calls = 0;
+    if (sum) {
+      hx.sum(list);
+    } else if (op == GhostOp::kFill) {
+      hx.fill(list);
+    } else {
+      hx.begin_fill(list);
+      EXPECT_THROW(hx.set_packer(nullptr), std::logic_error);  // not while in flight
+      hx.finish_fill(list);
+    }
+    hx.set_packer(nullptr);
+    const std::string what = sum ? "sum" : op == GhostOp::kFill ? "fill" : "split fill";
+    expect_same(d64, want64, what + " int64");
+    expect_same(d32, want32, what + " float");
+    expect_same(name64, name64_before, what + " host int64 untouched");
+    expect_same(name32, name32_before, what + " host float untouched");
+    EXPECT_EQ(packer.ready_calls, 2) << what << ": one per phase, before MPI reads";
+  }
+}
+
+TEST_F(Dist, MpiCudaSupportFollowsTheHeadersAndTheVariable) {
+  const MpiCudaSupport s = mpi_cuda_support();
+#if defined(MPIX_CUDA_AWARE_SUPPORT) && MPIX_CUDA_AWARE_SUPPORT
+  EXPECT_TRUE(s.built);
+#else
+  EXPECT_FALSE(s.built);
+  // Not built CUDA-aware (Debian's Open MPI): several tiles on a device
+  // stage through the host.
+  EXPECT_EQ(choose_halo_path(true, 2, s), HaloPath::kHostStaged);
+#endif
+  ::setenv("ERG_CUDA_AWARE_MPI", "0", 1);
+  EXPECT_FALSE(mpi_cuda_support().allowed);
+  EXPECT_EQ(choose_halo_path(true, 2, mpi_cuda_support()), HaloPath::kHostStaged);
+  ::unsetenv("ERG_CUDA_AWARE_MPI");
+  EXPECT_TRUE(mpi_cuda_support().allowed);
 }
 
 const Config kConfigs[] = {

@@ -9,13 +9,17 @@
 
 #include <memory>
 #include <span>
+#include <stdexcept>
 #include <vector>
 
 #include "core/field.h"
 #include "core/units.h"
 #include "dist/ghosts.h"
+#include "dist/halo_path.h"
 
 namespace erg::dist {
+
+class HaloPacker;  // dist/halo.h
 
 class Exchange {
  public:
@@ -55,6 +59,15 @@ class Exchange {
   }
   void count_host_staged(long long bytes) { host_staged_ += bytes; }
   virtual int tiles() const { return 1; }
+
+  // Whether the MPI library reads device memory (dist/halo_path.h; never on
+  // one process, which sends nothing).
+  virtual MpiCudaSupport cuda_support() const { return {}; }
+  // Ghosts travel through `p` (dist/halo.h) from now on, nullptr: through
+  // host memory again. Only an exchange that sends messages takes one.
+  virtual void set_packer(HaloPacker*) {
+    throw std::logic_error("this exchange sends no messages: it takes no packer");
+  }
 
  protected:
   // Messages and bytes sent (host_staged_bytes is the base class's).

@@ -19,6 +19,10 @@ enum class GhostOp { kFill, kBeginFill, kFinishFill, kSum };
 struct Ghosts {
   std::variant<Field<units_t>*, Field<float>*, Field<double>*> field;
   int width = 0;
+  // The field's device copy (same TileGeom layout) when a device packer
+  // (dist::HaloPacker, CUDA-aware MPI) moves it; the host field then only
+  // names the type and geometry.
+  void* device = nullptr;
 };
 
 }  // namespace erg::dist

@@ -7,7 +7,9 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <type_traits>
+#include <utility>
 #include <variant>
 
 namespace erg::dist {
@@ -48,8 +50,7 @@ void each(std::span<const Ghosts> parts, F&& f) {
 }
 
 // The bytes of every field's rectangle rect(w), one after the other.
-template <class RectOf>
-std::size_t bytes_of_all(std::span<const Ghosts> parts, RectOf rect) {
+std::size_t bytes_of_all(std::span<const Ghosts> parts, const RectOf& rect) {
   std::size_t n = 0;
   each(parts, [&](auto& f, int w) {
     n += bytes_of<typename std::decay_t<decltype(f)>::value_type>(rect(w));
@@ -57,81 +58,81 @@ std::size_t bytes_of_all(std::span<const Ghosts> parts, RectOf rect) {
   return n;
 }
 
-template <class RectOf>
-void pack(std::span<const Ghosts> parts, RectOf rect, std::vector<char>& buf) {
-  buf.resize(bytes_of_all(parts, rect));
-  char* p = buf.data();
-  each(parts, [&](auto& f, int w) {
-    using T = typename std::decay_t<decltype(f)>::value_type;
-    const Rect r = rect(w);
-    const std::size_t row = static_cast<std::size_t>(r.x1 - r.x0) * sizeof(T);
-    for (int y = r.y0; y < r.y1; ++y, p += row) std::memcpy(p, &f(r.x0, y), row);
-  });
-}
-
-template <class RectOf>
-void unpack_copy(std::span<const Ghosts> parts, RectOf rect, const std::vector<char>& buf) {
-  const char* p = buf.data();
-  each(parts, [&](auto& f, int w) {
-    using T = typename std::decay_t<decltype(f)>::value_type;
-    const Rect r = rect(w);
-    const std::size_t row = static_cast<std::size_t>(r.x1 - r.x0) * sizeof(T);
-    for (int y = r.y0; y < r.y1; ++y, p += row) std::memcpy(&f(r.x0, y), p, row);
-  });
-}
-
-template <class RectOf>
-void unpack_add(std::span<const Ghosts> parts, RectOf rect, const std::vector<char>& buf) {
-  const char* p = buf.data();
-  each(parts, [&](auto& f, int w) {
-    using T = typename std::decay_t<decltype(f)>::value_type;
-    const Rect r = rect(w);
-    const int n = r.x1 - r.x0;
-    for (int y = r.y0; y < r.y1; ++y) {
-      T* dst = &f(r.x0, y);
-      for (int x = 0; x < n; ++x, p += sizeof(T)) {
-        T v;
-        std::memcpy(&v, p, sizeof(T));
-        dst[x] += v;
+// The packer of host fields: row copies in host memory.
+class HostPacker final : public HaloPacker {
+ public:
+  char* buffer(int slot, std::size_t bytes) override {
+    std::vector<char>& b = buf_[slot];
+    if (b.size() < bytes) b.resize(bytes);
+    return b.data();
+  }
+  void pack(std::span<const Ghosts> parts, const RectOf& rect, char* p) override {
+    each(parts, [&](auto& f, int w) {
+      using T = typename std::decay_t<decltype(f)>::value_type;
+      const Rect r = rect(w);
+      const std::size_t row = static_cast<std::size_t>(r.x1 - r.x0) * sizeof(T);
+      for (int y = r.y0; y < r.y1; ++y, p += row) std::memcpy(p, &f(r.x0, y), row);
+    });
+  }
+  void unpack(std::span<const Ghosts> parts, const RectOf& rect, const char* p, bool add) override {
+    each(parts, [&](auto& f, int w) {
+      using T = typename std::decay_t<decltype(f)>::value_type;
+      const Rect r = rect(w);
+      const int n = r.x1 - r.x0;
+      const std::size_t row = static_cast<std::size_t>(n) * sizeof(T);
+      for (int y = r.y0; y < r.y1; ++y) {
+        T* dst = &f(r.x0, y);
+        if (!add) {
+          std::memcpy(dst, p, row);
+          p += row;
+          continue;
+        }
+        for (int x = 0; x < n; ++x, p += sizeof(T)) {
+          T v;
+          std::memcpy(&v, p, sizeof(T));
+          dst[x] += v;
+        }
       }
-    }
-  });
-}
+    });
+  }
+  void zero(std::span<const Ghosts> parts, const RectOf& rect) override {
+    each(parts, [&](auto& f, int w) {
+      using T = typename std::decay_t<decltype(f)>::value_type;
+      const Rect r = rect(w);
+      for (int y = r.y0; y < r.y1; ++y) std::fill(&f(r.x0, y), &f(r.x0, y) + (r.x1 - r.x0), T{});
+    });
+  }
 
-template <class RectOf>
-void zero(std::span<const Ghosts> parts, RectOf rect) {
-  each(parts, [&](auto& f, int w) {
-    using T = typename std::decay_t<decltype(f)>::value_type;
-    const Rect r = rect(w);
-    for (int y = r.y0; y < r.y1; ++y) std::fill(&f(r.x0, y), &f(r.x0, y) + (r.x1 - r.x0), T{});
-  });
-}
+ private:
+  std::vector<char> buf_[8];
+};
 
-int count_of(const std::vector<char>& buf) {
-  if (buf.size() > static_cast<std::size_t>(INT_MAX))
-    throw std::runtime_error("halo exchange: a message of " + std::to_string(buf.size()) +
+int count_of(std::size_t bytes) {
+  if (bytes > static_cast<std::size_t>(INT_MAX))
+    throw std::runtime_error("halo exchange: a message of " + std::to_string(bytes) +
                              " bytes is larger than MPI's int count");
-  return static_cast<int>(buf.size());
+  return static_cast<int>(bytes);
 }
 
 // Posts the exchange along one axis (directions a and b = kFlip[a]):
-// receives first, then sends. recv[d] must already have its final size.
-void post(MPI_Comm comm, const int (&nb)[4], int a, int b, std::vector<char> (&send)[4],
-          std::vector<char> (&recv)[4], MPI_Request* requests, int& pending,
+// receives first, then sends (buffers and their sizes per direction).
+void post(MPI_Comm comm, const int (&nb)[4], int a, int b, char* const (&send)[4],
+          const std::size_t (&send_bytes)[4], char* const (&recv)[4],
+          const std::size_t (&recv_bytes)[4], MPI_Request* requests, int& pending,
           HaloExchanger::Stats& stats) {
   for (const int d : {a, b}) {
-    check(MPI_Irecv(recv[d].data(), count_of(recv[d]), MPI_BYTE, nb[d], kTag + kFlip[d], comm,
+    check(MPI_Irecv(recv[d], count_of(recv_bytes[d]), MPI_BYTE, nb[d], kTag + kFlip[d], comm,
                     &requests[pending]),
           "MPI_Irecv");
     ++pending;
   }
   for (const int d : {a, b}) {
-    check(MPI_Isend(send[d].data(), count_of(send[d]), MPI_BYTE, nb[d], kTag + d, comm,
+    check(MPI_Isend(send[d], count_of(send_bytes[d]), MPI_BYTE, nb[d], kTag + d, comm,
                     &requests[pending]),
           "MPI_Isend");
     ++pending;
     stats.messages += 1;
-    stats.bytes += static_cast<long long>(send[d].size());
+    stats.bytes += static_cast<long long>(send_bytes[d]);
   }
 }
 
@@ -143,7 +144,11 @@ void wait_all(MPI_Request* requests, int& pending) {
 
 }  // namespace
 
-HaloExchanger::HaloExchanger(MPI_Comm cart, const TileGeom& g) : cart_(cart), g_(g) {
+HaloExchanger::HaloExchanger(MPI_Comm cart, const TileGeom& g)
+    : cart_(cart),
+      g_(g),
+      host_packer_(std::make_unique<HostPacker>()),
+      packer_(host_packer_.get()) {
   // Checks that every rank makes alike (same communicator) come first.
   int topo = MPI_UNDEFINED;
   check(MPI_Topo_test(cart, &topo), "MPI_Topo_test");
@@ -238,19 +243,15 @@ bool any_width(std::span<const Ghosts> parts) {
 
 }  // namespace
 
-// The ghost and edge rectangles of width w (local cells): the x phase runs
-// on owned rows, the y phase on the full padded width (carrying corners).
-struct HaloExchanger::Rects {
-  int nx, ny;
-  Rect left_edge(int w) const { return {0, w, 0, ny}; }
-  Rect right_edge(int w) const { return {nx - w, nx, 0, ny}; }
-  Rect left_ghost(int w) const { return {-w, 0, 0, ny}; }
-  Rect right_ghost(int w) const { return {nx, nx + w, 0, ny}; }
-  Rect down_edge(int w) const { return {-w, nx + w, 0, w}; }
-  Rect up_edge(int w) const { return {-w, nx + w, ny - w, ny}; }
-  Rect down_ghost(int w) const { return {-w, nx + w, -w, 0}; }
-  Rect up_ghost(int w) const { return {-w, nx + w, ny, ny + w}; }
-};
+void HaloExchanger::set_packer(HaloPacker* p) {
+  if (pending_ != 0) throw std::logic_error("halo exchange set_packer: an exchange is in flight");
+  packer_ = p ? p : host_packer_.get();
+}
+
+std::size_t HaloExchanger::bytes_of_all(std::span<const Ghosts> parts, Side side) const {
+  return dist::bytes_of_all(parts, RectOf{{g_.nx, g_.ny}, side});
+}
+
 void HaloExchanger::check_all(std::span<const Ghosts> parts, const char* what) const {
   for (const Ghosts& g : parts)
     std::visit(
@@ -263,31 +264,29 @@ void HaloExchanger::check_all(std::span<const Ghosts> parts, const char* what) c
 // One phase along the axis of directions a and b = kFlip[a]: every field's
 // rectangle send_a (send_b) goes towards a (b), in one message each; what
 // arrives from a (b) fills rectangles of the shape recv_a (recv_b).
-void HaloExchanger::start_phase(std::span<const Ghosts> parts, int a, int b, RectOf send_a,
-                                RectOf send_b, RectOf recv_a, RectOf recv_b) {
-  const Rects R{g_.nx, g_.ny};
-  const auto rect = [&R](RectOf r) { return [&R, r](int w) { return (R.*r)(w); }; };
-  pack(parts, rect(send_a), send_[a]);
-  pack(parts, rect(send_b), send_[b]);
-  recv_[a].resize(bytes_of_all(parts, rect(recv_a)));
-  recv_[b].resize(bytes_of_all(parts, rect(recv_b)));
+void HaloExchanger::start_phase(std::span<const Ghosts> parts, int a, int b, Side send_a,
+                                Side send_b, Side recv_a, Side recv_b) {
+  const HaloRects R{g_.nx, g_.ny};
+  for (const auto& [d, s, r] : {std::tuple{a, send_a, recv_a}, std::tuple{b, send_b, recv_b}}) {
+    send_bytes_[d] = bytes_of_all(parts, s);
+    send_[d] = packer_->buffer(d, send_bytes_[d]);
+    packer_->pack(parts, RectOf{R, s}, send_[d]);
+    recv_bytes_[d] = bytes_of_all(parts, r);
+    recv_[d] = packer_->buffer(4 + d, recv_bytes_[d]);
+  }
+  packer_->ready();
   const int nb[4] = {left_, right_, down_, up_};
-  post(cart_, nb, a, b, send_, recv_, requests_, pending_, stats_);
+  post(cart_, nb, a, b, send_, send_bytes_, recv_, recv_bytes_, requests_, pending_, stats_);
 }
 
 // Waits for the phase, then copies (or adds) what came from a and b into the
 // rectangles into_a and into_b.
-void HaloExchanger::finish_phase(std::span<const Ghosts> parts, int a, int b, RectOf into_a,
-                                 RectOf into_b, bool add) {
+void HaloExchanger::finish_phase(std::span<const Ghosts> parts, int a, int b, Side into_a,
+                                 Side into_b, bool add) {
   wait_all(requests_, pending_);
-  const Rects R{g_.nx, g_.ny};
-  for (const auto& [d, r] : {std::pair{a, into_a}, std::pair{b, into_b}}) {
-    const auto rect = [&R, r = r](int w) { return (R.*r)(w); };
-    if (add)
-      unpack_add(parts, rect, recv_[d]);
-    else
-      unpack_copy(parts, rect, recv_[d]);
-  }
+  const HaloRects R{g_.nx, g_.ny};
+  for (const auto& [d, r] : {std::pair{a, into_a}, std::pair{b, into_b}})
+    packer_->unpack(parts, RectOf{R, r}, recv_[d], add);
 }
 
 void HaloExchanger::begin_fill(std::span<const Ghosts> parts) {
@@ -296,8 +295,8 @@ void HaloExchanger::begin_fill(std::span<const Ghosts> parts) {
   check_all(parts, "begin_fill");
   if (!any_width(parts)) return;
   // x phase, owned rows: our first/last w columns go left/right.
-  start_phase(parts, kLeft, kRight, &Rects::left_edge, &Rects::right_edge, &Rects::left_ghost,
-              &Rects::right_ghost);
+  start_phase(parts, kLeft, kRight, &HaloRects::left_edge, &HaloRects::right_edge,
+              &HaloRects::left_ghost, &HaloRects::right_ghost);
 }
 
 void HaloExchanger::finish_fill(std::span<const Ghosts> parts) {
@@ -306,17 +305,16 @@ void HaloExchanger::finish_fill(std::span<const Ghosts> parts) {
     if (!any_width(parts)) return;  // begin_fill with width 0 posted nothing
     throw std::logic_error("halo exchange finish_fill: no begin_fill is in flight");
   }
-  const Rects R{g_.nx, g_.ny};
-  if (recv_[kLeft].size() != bytes_of_all(parts, [&R](int w) { return R.left_ghost(w); }) ||
-      recv_[kRight].size() != bytes_of_all(parts, [&R](int w) { return R.right_ghost(w); }))
+  if (recv_bytes_[kLeft] != bytes_of_all(parts, &HaloRects::left_ghost) ||
+      recv_bytes_[kRight] != bytes_of_all(parts, &HaloRects::right_ghost))
     throw std::logic_error(
         "halo exchange finish_fill: widths or types differ from the matching begin_fill");
-  finish_phase(parts, kLeft, kRight, &Rects::left_ghost, &Rects::right_ghost, false);
+  finish_phase(parts, kLeft, kRight, &HaloRects::left_ghost, &HaloRects::right_ghost, false);
   // y phase, full padded width (carries the corners): our first/last w rows
   // go down/up.
-  start_phase(parts, kDown, kUp, &Rects::down_edge, &Rects::up_edge, &Rects::down_ghost,
-              &Rects::up_ghost);
-  finish_phase(parts, kDown, kUp, &Rects::down_ghost, &Rects::up_ghost, false);
+  start_phase(parts, kDown, kUp, &HaloRects::down_edge, &HaloRects::up_edge, &HaloRects::down_ghost,
+              &HaloRects::up_ghost);
+  finish_phase(parts, kDown, kUp, &HaloRects::down_ghost, &HaloRects::up_ghost, false);
 }
 
 void HaloExchanger::fill(std::span<const Ghosts> parts) {
@@ -332,17 +330,17 @@ void HaloExchanger::sum(std::span<const Ghosts> parts) {
   // which add them into their top/bottom w rows (ghost columns included, so
   // corner contributions travel on in the x phase). What arrives from below
   // is the down neighbour's up ghosts.
-  start_phase(parts, kDown, kUp, &Rects::down_ghost, &Rects::up_ghost, &Rects::up_ghost,
-              &Rects::down_ghost);
-  finish_phase(parts, kDown, kUp, &Rects::down_edge, &Rects::up_edge, true);
+  start_phase(parts, kDown, kUp, &HaloRects::down_ghost, &HaloRects::up_ghost, &HaloRects::up_ghost,
+              &HaloRects::down_ghost);
+  finish_phase(parts, kDown, kUp, &HaloRects::down_edge, &HaloRects::up_edge, true);
   // x phase, owned rows: ghost columns go to their owners left/right.
-  start_phase(parts, kLeft, kRight, &Rects::left_ghost, &Rects::right_ghost, &Rects::right_ghost,
-              &Rects::left_ghost);
-  finish_phase(parts, kLeft, kRight, &Rects::left_edge, &Rects::right_edge, true);
-  const Rects R{g_.nx, g_.ny};
-  for (const RectOf r :
-       {&Rects::down_ghost, &Rects::up_ghost, &Rects::left_ghost, &Rects::right_ghost})
-    zero(parts, [&R, r](int w) { return (R.*r)(w); });
+  start_phase(parts, kLeft, kRight, &HaloRects::left_ghost, &HaloRects::right_ghost,
+              &HaloRects::right_ghost, &HaloRects::left_ghost);
+  finish_phase(parts, kLeft, kRight, &HaloRects::left_edge, &HaloRects::right_edge, true);
+  const HaloRects R{g_.nx, g_.ny};
+  for (const Side r : {&HaloRects::down_ghost, &HaloRects::up_ghost, &HaloRects::left_ghost,
+                       &HaloRects::right_ghost})
+    packer_->zero(parts, RectOf{R, r});
 }
 
 }  // namespace erg::dist

@@ -23,7 +23,9 @@
 
 #include <mpi.h>
 
+#include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -35,6 +37,51 @@ namespace erg::dist {
 // Local cells [x0, x1) x [y0, y1).
 struct Rect {
   int x0, x1, y0, y1;
+};
+
+// The edge and ghost rectangles of width w on a tile of nx x ny (local
+// cells): the x phase runs on owned rows, the y phase on the full padded
+// width (carrying the corners).
+struct HaloRects {
+  int nx, ny;
+  Rect left_edge(int w) const { return {0, w, 0, ny}; }
+  Rect right_edge(int w) const { return {nx - w, nx, 0, ny}; }
+  Rect left_ghost(int w) const { return {-w, 0, 0, ny}; }
+  Rect right_ghost(int w) const { return {nx, nx + w, 0, ny}; }
+  Rect down_edge(int w) const { return {-w, nx + w, 0, w}; }
+  Rect up_edge(int w) const { return {-w, nx + w, ny - w, ny}; }
+  Rect down_ghost(int w) const { return {-w, nx + w, -w, 0}; }
+  Rect up_ghost(int w) const { return {-w, nx + w, ny, ny + w}; }
+};
+// One of them, for every field at its own width.
+struct RectOf {
+  HaloRects rects;
+  Rect (HaloRects::*of)(int) const;
+  Rect operator()(int w) const { return (rects.*of)(w); }
+};
+
+// Where the messages of an exchange are packed from and unpacked into. A
+// message carries, for every field of the list with a width > 0 in list
+// order, its rectangle rect(width) row by row. The default packer works on
+// the host fields in host memory; a device backend whose MPI reads device
+// memory (CUDA-aware, dist/halo_path.h) supplies one that packs the fields'
+// device copies (Ghosts::device) into device buffers, which MPI then reads
+// and writes directly.
+class HaloPacker {
+ public:
+  virtual ~HaloPacker() = default;
+  // Storage of at least `bytes` for message slot s (0-3: sent towards
+  // left, right, down, up; 4-7: received from them), valid until the next
+  // call for that slot.
+  virtual char* buffer(int slot, std::size_t bytes) = 0;
+  virtual void pack(std::span<const Ghosts> fields, const RectOf& rect, char* dst) = 0;
+  // Copies (add = false) or adds what src holds into the rectangles.
+  virtual void unpack(std::span<const Ghosts> fields, const RectOf& rect, const char* src,
+                      bool add) = 0;
+  virtual void zero(std::span<const Ghosts> fields, const RectOf& rect) = 0;
+  // Every pack is complete: MPI may read the buffers (a device waits for
+  // its kernels here).
+  virtual void ready() {}
 };
 
 class HaloExchanger {
@@ -76,6 +123,11 @@ class HaloExchanger {
     finish_fill(std::span<const Ghosts>(&g, 1));
   }
 
+  // Packs through `p` (which must outlive its use) instead of the host
+  // packer; nullptr returns to the host packer. Not while an exchange is in
+  // flight.
+  void set_packer(HaloPacker* p);
+
   // Messages and bytes this rank has sent since construction or reset.
   struct Stats {
     long long messages = 0;
@@ -91,18 +143,22 @@ class HaloExchanger {
 
  private:
   void check_all(std::span<const Ghosts> fields, const char* what) const;
-  struct Rects;  // the edge and ghost rectangles of a width (halo.cpp)
-  using RectOf = Rect (Rects::*)(int) const;
-  void start_phase(std::span<const Ghosts> fields, int a, int b, RectOf send_a, RectOf send_b,
-                   RectOf recv_a, RectOf recv_b);
-  void finish_phase(std::span<const Ghosts> fields, int a, int b, RectOf into_a, RectOf into_b,
+  using Side = Rect (HaloRects::*)(int) const;
+  void start_phase(std::span<const Ghosts> fields, int a, int b, Side send_a, Side send_b,
+                   Side recv_a, Side recv_b);
+  void finish_phase(std::span<const Ghosts> fields, int a, int b, Side into_a, Side into_b,
                     bool add);
+  std::size_t bytes_of_all(std::span<const Ghosts> fields, Side side) const;
   MPI_Comm cart_;
   TileGeom g_;
   int left_ = 0, right_ = 0, down_ = 0, up_ = 0;              // ranks
   int nx_left_ = 0, nx_right_ = 0, ny_down_ = 0, ny_up_ = 0;  // their tile sizes
-  int max_width_ = 0;                    // smallest halo, nx and ny over all ranks
-  std::vector<char> send_[4], recv_[4];  // staging per direction
+  int max_width_ = 0;                        // smallest halo, nx and ny over all ranks
+  std::unique_ptr<HaloPacker> host_packer_;  // host fields, host memory
+  HaloPacker* packer_ = nullptr;             // the one in use
+  // This exchange's messages per direction (the packer's buffers).
+  char *send_[4] = {}, *recv_[4] = {};
+  std::size_t send_bytes_[4] = {}, recv_bytes_[4] = {};
   MPI_Request requests_[8];
   int pending_ = 0;
   Stats stats_;

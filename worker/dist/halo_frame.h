@@ -39,6 +39,9 @@ struct HaloFrame {
            static_cast<std::size_t>(inner_rows()) * inner_row_cells();
   }
 
+  // Whether local cell (x, y) is owned (else a ghost).
+  ERG_HD bool owned(int x, int y) const { return x >= 0 && x < nx && y >= 0 && y < ny; }
+
   // Local cell (x, y) of frame cell i < size().
   ERG_HD void cell(std::size_t i, int& x, int& y) const {
     const std::size_t row = static_cast<std::size_t>(row_cells());
@@ -77,12 +80,14 @@ void pack_frame(const Field<T>& f, const HaloFrame& fr, T* out) {
   }
 }
 
+// ghosts_only: only the frame's ghost cells are written (after a fill,
+// whose owned cells are unchanged: dist/halo_path.h).
 template <class T>
-void unpack_frame(const T* in, const HaloFrame& fr, Field<T>& f) {
+void unpack_frame(const T* in, const HaloFrame& fr, Field<T>& f, bool ghosts_only = false) {
   for (std::size_t i = 0; i < fr.size(); ++i) {
     int x, y;
     fr.cell(i, x, y);
-    f(x, y) = in[i];
+    if (!(ghosts_only && fr.owned(x, y))) f(x, y) = in[i];
   }
 }
 

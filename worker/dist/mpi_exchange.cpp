@@ -2,8 +2,15 @@
 #include "dist/mpi_exchange.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
+
+// Open MPI's extensions: MPIX_CUDA_AWARE_SUPPORT and MPIX_Query_cuda_support
+// (its documented two-step check for CUDA-aware builds).
+#if __has_include(<mpi-ext.h>)
+#include <mpi-ext.h>
+#endif
 
 namespace erg::dist {
 
@@ -16,6 +23,20 @@ void check(int rc, const char* what) {
   throw std::runtime_error(std::string(what) + ": " + std::string(text, static_cast<size_t>(n)));
 }
 }  // namespace
+
+MpiCudaSupport mpi_cuda_support() {
+  MpiCudaSupport s;
+#if defined(MPIX_CUDA_AWARE_SUPPORT) && MPIX_CUDA_AWARE_SUPPORT
+  s.built = true;
+#endif
+#if defined(OMPI_HAVE_MPI_EXT_CUDA) && OMPI_HAVE_MPI_EXT_CUDA
+  // Asked even when the headers say no, so that the log tells both.
+  s.runtime = MPIX_Query_cuda_support() == 1;
+#endif
+  const char* v = std::getenv("ERG_CUDA_AWARE_MPI");
+  s.allowed = !(v && std::string(v) == "0");
+  return s;
+}
 
 void MpiExchange::ghosts(GhostOp op, std::span<const Ghosts> fields) {
   switch (op) {
@@ -35,7 +56,7 @@ void MpiExchange::ghosts(GhostOp op, std::span<const Ghosts> fields) {
 }
 
 MpiExchange::MpiExchange(MPI_Comm cart, const Decomposition& d, const TileGeom& g, int cx, int cy)
-    : cart_(cart), d_(d), cx_(cx), cy_(cy), halo_(cart, g) {
+    : cart_(cart), d_(d), cx_(cx), cy_(cy), halo_(cart, g), cuda_(mpi_cuda_support()) {
   check(MPI_Comm_size(cart_, &size_), "MPI_Comm_size");
   check(MPI_Comm_rank(cart_, &rank_), "MPI_Comm_rank");
   for (int i = 0; i < d_.px; ++i) {

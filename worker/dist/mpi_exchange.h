@@ -27,6 +27,8 @@ class MpiExchange final : public Exchange {
                      std::vector<double>& window) override;
 
   int tiles() const override { return size_; }
+  MpiCudaSupport cuda_support() const override { return cuda_; }
+  void set_packer(HaloPacker* p) override { halo_.set_packer(p); }
 
  protected:
   Stats traffic() const override {
@@ -40,6 +42,7 @@ class MpiExchange final : public Exchange {
   int cx_, cy_;
   int size_ = 1;
   HaloExchanger halo_;
+  MpiCudaSupport cuda_;  // asked once (mpi_cuda_support)
   int rank_ = 0;
   // The coarse columns of every tile column and the coarse rows of every
   // tile row: origin and size in coarse cells; the rank of every tile.
