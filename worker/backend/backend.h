@@ -67,6 +67,10 @@ class Backend {
  public:
   virtual ~Backend() = default;
   virtual std::string name() const = 0;
+  // How this backend's ghosts reach the other tiles (dist/halo_path.h): on
+  // the host, on the device (one tile), staged through host memory, or
+  // handed to a CUDA-aware MPI.
+  virtual dist::HaloPath halo_path() const { return dist::HaloPath::kHost; }
 
   // Exact state in and out (host TileState <-> backend storage).
   virtual void upload(const TileState& s) = 0;

@@ -8,6 +8,8 @@
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+#include <variant>
+#include <vector>
 
 #include "backend/cuda/cuda_backend.h"
 #include "backend/device_choice.h"
@@ -184,11 +186,131 @@ __global__ void totals_kernel(TileGeom g, const units_t* sand, const units_t* ai
 
 // ---- the backend ------------------------------------------------------------------
 
-CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
-    : m_(model), g_(model.tile), ex_(ex) {
+// ---- the device packer of a CUDA-aware MPI ------------------------------------
+
+namespace {
+
+// One thread per cell of a rectangle of a padded field, row by row.
+__device__ __forceinline__ bool rect_cell(const dist::Rect& r, int& x, int& y, std::size_t& i) {
+  i = flat_index();
+  const std::size_t w = static_cast<std::size_t>(r.x1 - r.x0);
+  if (i >= w * static_cast<std::size_t>(r.y1 - r.y0)) return false;
+  x = r.x0 + static_cast<int>(i % w);
+  y = r.y0 + static_cast<int>(i / w);
+  return true;
+}
+template <class T>
+__global__ void rect_pack_kernel(const T* f, TileGeom g, dist::Rect r, T* out) {
+  int x, y;
+  std::size_t i;
+  if (rect_cell(r, x, y, i)) out[i] = f[g.at(x, y)];
+}
+// Each cell once: a plain add is the host packer's add, bit for bit.
+template <class T>
+__global__ void rect_unpack_kernel(const T* in, TileGeom g, dist::Rect r, bool add, T* f) {
+  int x, y;
+  std::size_t i;
+  if (!rect_cell(r, x, y, i)) return;
+  T& c = f[g.at(x, y)];
+  c = add ? c + in[i] : in[i];
+}
+template <class T>
+__global__ void rect_zero_kernel(TileGeom g, dist::Rect r, T* f) {
+  int x, y;
+  std::size_t i;
+  if (rect_cell(r, x, y, i)) f[g.at(x, y)] = T{};
+}
+
+std::size_t cells_of(const dist::Rect& r) {
+  return static_cast<std::size_t>(r.x1 - r.x0) * static_cast<std::size_t>(r.y1 - r.y0);
+}
+
+// Packs the fields' device copies (dist::Ghosts::device) into device
+// buffers that a CUDA-aware MPI reads and writes, on the backend's copy
+// stream; the host fields of the list name only type and geometry.
+class DevicePacker final : public dist::HaloPacker {
+ public:
+  explicit DevicePacker(cudaStream_t s) : s_(s) {}
+  char* buffer(int slot, std::size_t bytes) override {
+    DeviceBuffer<unsigned char>& b = buf_[slot];
+    if (b.size() < bytes) {
+      ERG_CUDA_CHECK(cudaStreamSynchronize(s_));
+      b.reset(bytes);
+    }
+    return reinterpret_cast<char*>(b.get());
+  }
+  void pack(std::span<const dist::Ghosts> parts, const dist::RectOf& rect, char* dst) override {
+    each(parts, rect, [&](auto* f, const TileGeom& g, const dist::Rect& r) {
+      using T = std::remove_const_t<std::remove_pointer_t<decltype(f)>>;
+      const Launch k = flat(cells_of(r));
+      ERG_LAUNCH_ON(s_, rect_pack_kernel<T>, k.grid, k.block, f, g, r, reinterpret_cast<T*>(dst));
+      dst += cells_of(r) * sizeof(T);
+    });
+  }
+  void unpack(std::span<const dist::Ghosts> parts, const dist::RectOf& rect, const char* src,
+              bool add) override {
+    each(parts, rect, [&](auto* f, const TileGeom& g, const dist::Rect& r) {
+      using T = std::remove_const_t<std::remove_pointer_t<decltype(f)>>;
+      const Launch k = flat(cells_of(r));
+      ERG_LAUNCH_ON(s_, rect_unpack_kernel<T>, k.grid, k.block, reinterpret_cast<const T*>(src), g,
+                    r, add, f);
+      src += cells_of(r) * sizeof(T);
+    });
+  }
+  void zero(std::span<const dist::Ghosts> parts, const dist::RectOf& rect) override {
+    each(parts, rect, [&](auto* f, const TileGeom& g, const dist::Rect& r) {
+      using T = std::remove_const_t<std::remove_pointer_t<decltype(f)>>;
+      const Launch k = flat(cells_of(r));
+      ERG_LAUNCH_ON(s_, rect_zero_kernel<T>, k.grid, k.block, g, r, f);
+    });
+  }
+  // MPI reads the send buffers only once their packing kernels are done.
+  void ready() override { ERG_CUDA_CHECK(cudaStreamSynchronize(s_)); }
+
+ private:
+  // f(device storage, geometry, rectangle) for every field with a width > 0.
+  template <class F>
+  static void each(std::span<const dist::Ghosts> parts, const dist::RectOf& rect, F&& f) {
+    for (const dist::Ghosts& p : parts) {
+      if (p.width <= 0) continue;
+      if (!p.device) throw std::logic_error("CUDA backend: a halo field without its device copy");
+      std::visit(
+          [&](auto* host) {
+            using T = typename std::remove_reference_t<decltype(*host)>::value_type;
+            const dist::Rect r = rect(p.width);
+            if (cells_of(r) > 0) f(static_cast<T*>(p.device), host->geom(), r);
+          },
+          p.field);
+    }
+  }
+  cudaStream_t s_;
+  DeviceBuffer<unsigned char> buf_[8];
+};
+
+}  // namespace
+
+std::unique_ptr<dist::HaloPacker> make_device_packer(cudaStream_t s) {
+  return std::make_unique<DevicePacker>(s);
+}
+
+namespace {
+// Selects this rank's device, then the halo path: the first member that
+// needs either, before the streams and events, which belong to the device
+// current when they are made.
+dist::HaloPath select_device_and_path(int local_rank, const dist::Exchange& ex) {
   int devices = 0;
   ERG_CUDA_CHECK(cudaGetDeviceCount(&devices));
   ERG_CUDA_CHECK(cudaSetDevice(device_for_rank(local_rank, devices)));
+  return dist::choose_halo_path(true, ex.tiles(), ex.cuda_support());
+}
+}  // namespace
+
+CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
+    : m_(model), g_(model.tile), ex_(ex), path_(select_device_and_path(local_rank, ex)) {
+  if (path_ == dist::HaloPath::kDeviceDirect) {
+    packer_ = make_device_packer(copy_.get());
+    ex_.set_packer(packer_.get());
+  }
 
   const std::size_t n = g_.size();
   fields::each([&](fields::Id id, const fields::Info& f) {
@@ -234,6 +356,15 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
 
   row_sums_.reset(3 * static_cast<std::size_t>(g_.ny));
   host_rows_.assign(3 * static_cast<std::size_t>(g_.ny), 0);
+}
+
+CudaBackend::~CudaBackend() {
+  if (!packer_) return;
+  try {
+    ex_.set_packer(nullptr);  // the exchange outlives this backend
+  } catch (...) {
+    // In flight (the run failed mid-exchange): the exchange is not used again.
+  }
 }
 
 namespace {
@@ -404,93 +535,164 @@ __global__ void pack_frame_kernel(const T* f, TileGeom g, dist::HaloFrame fr, T*
   out[i] = f[g.at(x, y)];
 }
 
+// ghosts_only (after a fill): the owned cells are left alone, so the copy
+// back may run while kernels read them (dist::staging_steps).
 template <class T>
-__global__ void unpack_frame_kernel(const T* in, TileGeom g, dist::HaloFrame fr, T* f) {
+__global__ void unpack_frame_kernel(const T* in, TileGeom g, dist::HaloFrame fr, bool ghosts_only,
+                                    T* f) {
   const std::size_t i = flat_index();
   if (i >= fr.size()) return;
   int x, y;
   fr.cell(i, x, y);
+  if (ghosts_only && fr.owned(x, y)) return;
   f[g.at(x, y)] = in[i];
+}
+
+bool is_units(fields::Id id) {
+  return fields::info(id).type == fields::Type::kUnits;
 }
 }  // namespace
 
-// The frame of width w (at most the halo) and its two staging buffers, sized
-// for elements of `elem` bytes; the bytes are counted as staged (one way).
-CudaBackend::FrameStaging CudaBackend::frame_staging(int w, std::size_t elem) {
-  FrameStaging s{dist::HaloFrame{g_.nx, g_.ny, w < g_.halo ? w : g_.halo}, 0, nullptr, nullptr};
-  s.bytes = s.frame.size() * elem;
-  if (s.bytes == 0) return s;
-  if (frame_dev_.size() < s.bytes) frame_dev_.reset(s.bytes);
-  s.device = frame_dev_.get();
-  s.host = frame_host_.at_least(s.bytes);
-  ex_.count_host_staged(static_cast<long long>(s.bytes));
-  return s;
+// Both grow together, so the pinned buffer is never smaller than the device one.
+void CudaBackend::frame_capacity(std::size_t bytes) {
+  if (frame_dev_.size() >= bytes) return;
+  ERG_CUDA_CHECK(cudaStreamSynchronize(copy_.get()));  // nothing may still use the old ones
+  frame_dev_.reset(bytes);
+  frame_host_.at_least(bytes);
 }
 
-template <class T>
-void CudaBackend::frame_to_host(const DeviceBuffer<T>& d, Field<T>& h, int w) {
-  const FrameStaging s = frame_staging(w, sizeof(T));
-  if (s.bytes == 0) return;
-  const Launch l = flat(s.frame.size());
-  ERG_LAUNCH(pack_frame_kernel<T>, l.grid, l.block, d.get(), g_, s.frame,
-             static_cast<T*>(s.device));
-  ERG_CUDA_CHECK(cudaMemcpy(s.host, s.device, s.bytes, cudaMemcpyDeviceToHost));
-  dist::unpack_frame(static_cast<const T*>(s.host), s.frame, h);
+dist::Ghosts CudaBackend::host_ghosts(const FieldGhosts& f) {
+  if (is_units(f.id)) {
+    Field<units_t>& host = stage_.units[f.id];
+    if (host.size() != units(f.id).size()) host.reset(g_);
+    return {&host, f.width, units(f.id).get()};
+  }
+  Field<float>& host = stage_.reals[f.id];
+  if (host.size() != reals(f.id).size()) host.reset(g_);
+  return {&host, f.width, reals(f.id).get()};
 }
 
-template <class T>
-void CudaBackend::frame_to_device(const Field<T>& h, DeviceBuffer<T>& d, int w) {
-  const FrameStaging s = frame_staging(w, sizeof(T));
-  if (s.bytes == 0) return;
-  dist::pack_frame(h, s.frame, static_cast<T*>(s.host));
-  ERG_CUDA_CHECK(cudaMemcpy(s.device, s.host, s.bytes, cudaMemcpyHostToDevice));
-  const Launch l = flat(s.frame.size());
-  ERG_LAUNCH(unpack_frame_kernel<T>, l.grid, l.block, static_cast<const T*>(s.device), g_, s.frame,
-             d.get());
-}
-
-// On one tile the periodic wrap runs on the device (a fill copies owners
-// into ghosts, a sum folds ghosts into owners). With several tiles only each
-// field's halo frame (the ghosts and the owned cells within the width of the
-// edge, dist/halo_frame.h) crosses to its host staging field, where the
-// exchange sends all of them in one message per neighbour, and back.
-void CudaBackend::ghosts(GhostOp op, std::span<const FieldGhosts> fields) {
-  const auto is_units = [](fields::Id id) { return fields::info(id).type == fields::Type::kUnits; };
-  if (ex_.tiles() == 1) {
-    if (op == GhostOp::kFinishFill) return;  // done at kBeginFill
-    for (const FieldGhosts& f : fields) {
-      if (op == GhostOp::kSum) {
-        if (!is_units(f.id)) throw std::logic_error("CUDA backend: ghost sums are of units fields");
-        fold_halo_periodic(units(f.id).get(), g_, f.width);
-      } else if (is_units(f.id)) {
-        fill_halo_periodic(units(f.id).get(), g_, f.width);
-      } else {
-        fill_halo_periodic(reals(f.id).get(), g_, f.width);
-      }
+// One tile: the periodic wrap on the device (a fill copies owners into
+// ghosts, a sum folds ghosts into owners).
+void CudaBackend::ghosts_periodic(GhostOp op, std::span<const FieldGhosts> fields) {
+  if (op == GhostOp::kFinishFill) return;  // done at kBeginFill
+  for (const FieldGhosts& f : fields) {
+    if (op == GhostOp::kSum) {
+      if (!is_units(f.id)) throw std::logic_error("CUDA backend: ghost sums are of units fields");
+      fold_halo_periodic(units(f.id).get(), g_, f.width);
+    } else if (is_units(f.id)) {
+      fill_halo_periodic(units(f.id).get(), g_, f.width);
+    } else {
+      fill_halo_periodic(reals(f.id).get(), g_, f.width);
     }
-    return;
+  }
+}
+
+// Several tiles, MPI on host memory: the listed fields' halo frames (the
+// ghosts and the owned cells within the width of the edge,
+// dist/halo_frame.h), one after another in one buffer (dist::frame_layout),
+// packed on copy_ and copied to pinned memory in one copy; unpacked into the
+// host fields the exchange works on; and back. dist::staging_steps says
+// which of these each operation does: a split fill downloads at kBeginFill
+// and returns, so that the copy overlaps the wind warping's kernels, and at
+// kFinishFill exchanges and queues the copy back, which the following
+// kernels wait for on the device, not the host.
+void CudaBackend::ghosts_staged(GhostOp op, std::span<const FieldGhosts> fields) {
+  const dist::StagingSteps st = dist::staging_steps(op);
+  std::vector<int> widths;
+  std::vector<std::size_t> elems;
+  for (const FieldGhosts& f : fields) {
+    widths.push_back(f.width);
+    elems.push_back(is_units(f.id) ? sizeof(units_t) : sizeof(float));
+  }
+  const dist::FrameLayout l = dist::frame_layout(g_, widths, elems);
+  const cudaStream_t cs = copy_.get();
+  // Calls f(field's device buffer, its slot) for every listed field with a frame.
+  const auto each = [&](auto&& f) {
+    for (std::size_t i = 0; i < fields.size(); ++i) {
+      const dist::FrameSlot& slot = l.slots[i];
+      if (slot.bytes == 0) continue;
+      if (is_units(fields[i].id))
+        f(units(fields[i].id), stage_.units[fields[i].id], slot);
+      else
+        f(reals(fields[i].id), stage_.reals[fields[i].id], slot);
+    }
+  };
+  unsigned char* dev = nullptr;
+  unsigned char* host = nullptr;
+  if (l.bytes > 0) {
+    if (st.download)
+      frame_capacity(l.bytes);
+    else if (frame_dev_.size() < l.bytes)
+      throw std::logic_error("CUDA backend: a kFinishFill without its kBeginFill");
+    dev = frame_dev_.get();
+    host = static_cast<unsigned char*>(frame_host_.at_least(l.bytes));
   }
   std::vector<dist::Ghosts> list;
-  for (const FieldGhosts& f : fields) {
-    if (is_units(f.id)) {
-      Field<units_t>& host = stage_.units[f.id];
-      if (host.size() != units(f.id).size()) host.reset(g_);
-      if (op != GhostOp::kFinishFill) frame_to_host(units(f.id), host, f.width);
-      list.push_back({&host, f.width});
-    } else {
-      Field<float>& host = stage_.reals[f.id];
-      if (host.size() != reals(f.id).size()) host.reset(g_);
-      if (op != GhostOp::kFinishFill) frame_to_host(reals(f.id), host, f.width);
-      list.push_back({&host, f.width});
-    }
+  for (const FieldGhosts& f : fields) list.push_back(host_ghosts(f));
+
+  if (st.download && l.bytes > 0) {
+    stream_waits(cs, kCompute, produced_);  // after the kernels that wrote the fields
+    each([&](auto& d, auto&, const dist::FrameSlot& slot) {
+      using T = std::remove_reference_t<decltype(*d.get())>;
+      const Launch k = flat(slot.frame.size());
+      ERG_LAUNCH_ON(cs, pack_frame_kernel<T>, k.grid, k.block, d.get(), g_, slot.frame,
+                    reinterpret_cast<T*>(dev + slot.offset));
+    });
+    ERG_CUDA_CHECK(cudaMemcpyAsync(host, dev, l.bytes, cudaMemcpyDeviceToHost, cs));
+    ex_.count_host_staged(dist::staged_bytes({true, false, GhostOp::kFill, false, false}, l));
   }
+  if (!st.exchange) return;
+  // The host reads the pinned frames once copy_ is done (the stages may
+  // still run on kCompute).
+  ERG_CUDA_CHECK(cudaStreamSynchronize(cs));
+  each([&](auto&, auto& h, const dist::FrameSlot& slot) {
+    using T = typename std::remove_reference_t<decltype(h)>::value_type;
+    dist::unpack_frame(reinterpret_cast<const T*>(host + slot.offset), slot.frame, h);
+  });
+  ex_.ghosts(st.exchange_op, list);
+  if (!st.upload || l.bytes == 0) return;
+  each([&](auto&, auto& h, const dist::FrameSlot& slot) {
+    using T = typename std::remove_reference_t<decltype(h)>::value_type;
+    dist::pack_frame(h, slot.frame, reinterpret_cast<T*>(host + slot.offset));
+  });
+  ERG_CUDA_CHECK(cudaMemcpyAsync(dev, host, l.bytes, cudaMemcpyHostToDevice, cs));
+  each([&](auto& d, auto&, const dist::FrameSlot& slot) {
+    using T = std::remove_reference_t<decltype(*d.get())>;
+    const Launch k = flat(slot.frame.size());
+    ERG_LAUNCH_ON(cs, unpack_frame_kernel<T>, k.grid, k.block,
+                  reinterpret_cast<const T*>(dev + slot.offset), g_, slot.frame, st.ghosts_only,
+                  d.get());
+  });
+  stream_waits(kCompute, cs, staged_);  // the next stage's kernels wait on the device
+  ex_.count_host_staged(dist::staged_bytes({false, false, GhostOp::kFill, true, false}, l));
+}
+
+// Several tiles, CUDA-aware MPI: the exchange packs and unpacks the device
+// fields themselves through the device packer (on copy_) and hands MPI
+// device buffers; nothing is staged. As on the staged path, the packing
+// waits for the kernels that wrote the fields, and the kernels after the
+// exchange wait for its unpacking on the device; between a kBeginFill and
+// its kFinishFill the stages' kernels run alongside.
+void CudaBackend::ghosts_direct(GhostOp op, std::span<const FieldGhosts> fields) {
+  std::vector<dist::Ghosts> list;
+  for (const FieldGhosts& f : fields) list.push_back(host_ghosts(f));
+  if (op != GhostOp::kFinishFill) stream_waits(copy_.get(), kCompute, produced_);
   ex_.ghosts(op, list);
-  if (op == GhostOp::kBeginFill) return;  // uploaded at kFinishFill
-  for (const FieldGhosts& f : fields) {
-    if (is_units(f.id))
-      frame_to_device(stage_.units[f.id], units(f.id), f.width);
-    else
-      frame_to_device(stage_.reals[f.id], reals(f.id), f.width);
+  if (op != GhostOp::kBeginFill) stream_waits(kCompute, copy_.get(), staged_);
+}
+
+void CudaBackend::ghosts(GhostOp op, std::span<const FieldGhosts> fields) {
+  switch (path_) {
+    case dist::HaloPath::kDeviceDirect:
+      ghosts_direct(op, fields);
+      return;
+    case dist::HaloPath::kHostStaged:
+      ghosts_staged(op, fields);
+      return;
+    default:
+      ghosts_periodic(op, fields);
+      return;
   }
 }
 

@@ -22,6 +22,8 @@
 #include "core/grid.h"
 #include "core/units.h"
 #include "dist/halo_frame.h"
+#include "dist/halo_packer.h"
+#include "dist/halo_path.h"
 #include "stages/wind_warping.h"
 
 namespace erg::gpu {
@@ -42,6 +44,13 @@ void check_launch(const char* kernel);
   do {                                        \
     kernel<<<(grid), (block)>>>(__VA_ARGS__); \
     ::erg::gpu::check_launch(#kernel);        \
+  } while (0)
+// The same on `stream` (the halo copy stream; every stage runs on the
+// default stream).
+#define ERG_LAUNCH_ON(stream, kernel, grid, block, ...)    \
+  do {                                                     \
+    kernel<<<(grid), (block), 0, (stream)>>>(__VA_ARGS__); \
+    ::erg::gpu::check_launch(#kernel);                     \
   } while (0)
 
 // ---- device memory ----------------------------------------------------------
@@ -109,6 +118,43 @@ class PinnedBuffer {
   void* p_ = nullptr;
   std::size_t n_ = 0;
 };
+
+// A stream that does not wait for the legacy default stream (where the
+// stages run), and an event without timing; owned, destroyed without throwing.
+class Stream {
+ public:
+  Stream() { ERG_CUDA_CHECK(cudaStreamCreateWithFlags(&s_, cudaStreamNonBlocking)); }
+  ~Stream() {
+    if (s_) cudaStreamDestroy(s_);
+  }
+  Stream(const Stream&) = delete;
+  Stream& operator=(const Stream&) = delete;
+  cudaStream_t get() const { return s_; }
+
+ private:
+  cudaStream_t s_ = nullptr;
+};
+class Event {
+ public:
+  Event() { ERG_CUDA_CHECK(cudaEventCreateWithFlags(&e_, cudaEventDisableTiming)); }
+  ~Event() {
+    if (e_) cudaEventDestroy(e_);
+  }
+  Event(const Event&) = delete;
+  Event& operator=(const Event&) = delete;
+  cudaEvent_t get() const { return e_; }
+
+ private:
+  cudaEvent_t e_ = nullptr;
+};
+// `waiter` runs nothing more until everything queued on `done` so far has
+// run (through `e`); the host does not wait.
+inline void stream_waits(cudaStream_t waiter, cudaStream_t done, const Event& e) {
+  ERG_CUDA_CHECK(cudaEventRecord(e.get(), done));
+  ERG_CUDA_CHECK(cudaStreamWaitEvent(waiter, e.get(), 0));
+}
+// The legacy default stream, where every stage's kernels run.
+inline constexpr cudaStream_t kCompute = 0;
 
 // ---- launch geometry --------------------------------------------------------
 inline constexpr int kBlockX = 32, kBlockY = 8;  // 2-D blocks over owned cells
@@ -192,14 +238,21 @@ template <class T>
 void fill_halo_periodic(T* f, const TileGeom& g, int width);
 void fold_halo_periodic(units_t* f, const TileGeom& g, int width);
 
+// The packer of a CUDA-aware MPI (dist/halo_packer.h): device fields into
+// device buffers, on `s` (cuda_backend.cu).
+std::unique_ptr<dist::HaloPacker> make_device_packer(cudaStream_t s);
+
 // ---- the backend --------------------------------------------------------------
 class CudaBackend final : public Backend {
  public:
   // `ex` (which must outlive the backend) fills ghosts and sums across tiles;
-  // with several tiles, ghosts go through host memory (the Debian Open MPI
-  // is not CUDA-aware). The GPU used is local_rank % devices (device_choice.h).
+  // with several tiles, the packed halo frames go through pinned host memory,
+  // or straight to MPI where it is CUDA-aware (dist/halo_path.h). The GPU
+  // used is local_rank % devices (device_choice.h).
   CudaBackend(const Model& model, dist::Exchange& ex, int local_rank);
+  ~CudaBackend() override;
   std::string name() const override { return "cuda"; }
+  dist::HaloPath halo_path() const override { return path_; }
   void upload(const TileState& s) override;
   void download(TileState& s) override;
   void download_owned(fields::Id id, std::vector<float>& out) override;
@@ -235,26 +288,30 @@ class CudaBackend final : public Backend {
   // then add host_rows_[first, first + count) in a fixed order.
   void fetch_rows(int count);
   total_t sum_rows(int first, int count) const;
-  // The halo frame of width w (dist/halo_frame.h) of a device field to its
-  // host staging field and back, through frame_dev_ and frame_host_.
-  struct FrameStaging {
-    dist::HaloFrame frame;
-    std::size_t bytes;
-    void* device;
-    void* host;
-  };
-  FrameStaging frame_staging(int w, std::size_t elem);
-  template <class T>
-  void frame_to_host(const DeviceBuffer<T>& d, Field<T>& h, int w);
-  template <class T>
-  void frame_to_device(const Field<T>& h, DeviceBuffer<T>& d, int w);
+  // The three ways of ghosts() (dist/halo_path.h).
+  void ghosts_periodic(GhostOp op, std::span<const FieldGhosts> fields);
+  void ghosts_staged(GhostOp op, std::span<const FieldGhosts> fields);
+  void ghosts_direct(GhostOp op, std::span<const FieldGhosts> fields);
+  // The host field that stands for a device field in the exchange: the
+  // staging copy of its frame (host-staged) or only its type and geometry
+  // (CUDA-aware MPI, which reads the device copy, dist::Ghosts::device).
+  dist::Ghosts host_ghosts(const FieldGhosts& f);
+  // Frame buffers of at least `bytes` (after the copies that use them).
+  void frame_capacity(std::size_t bytes);
 
   Model m_;
   TileGeom g_;
   dist::Exchange& ex_;
-  fields::ByField<Field> stage_;           // host staging of ghosts (several tiles), per field
-  DeviceBuffer<unsigned char> frame_dev_;  // one field's packed halo frame
-  PinnedBuffer frame_host_;                // ... and its host copy
+  dist::HaloPath path_;
+  // Halo copies run on copy_, the stages on kCompute; produced_ orders the
+  // copies after the kernels that wrote the fields, staged_ the kernels
+  // after the copies back (dist::staging_steps says which overlap what).
+  Stream copy_;
+  Event produced_, staged_;
+  fields::ByField<Field> stage_;              // host staging of ghosts (several tiles), per field
+  DeviceBuffer<unsigned char> frame_dev_;     // the listed fields' packed halo frames
+  PinnedBuffer frame_host_;                   // ... and their host copy
+  std::unique_ptr<dist::HaloPacker> packer_;  // CUDA-aware MPI: packs on the device
   // One padded device buffer per registry entry (core/fields.h, TileGeom::at
   // layout), by id or by the name the stages use (d_.sand, d_.reptation, ...).
   fields::Named<DeviceBuffer> d_;
