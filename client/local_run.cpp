@@ -82,6 +82,9 @@ void show_event(const erg::v1::WorkerEvent& ev, ProgressBar& bar, const std::str
       if (d.halo_messages_per_step() > 0)
         std::cerr << "erg: halo exchange: " << d.halo_messages_per_step() << " messages, "
                   << d.halo_bytes_per_step() << " bytes per step (the most of any rank)\n";
+      if (d.host_staged_bytes_per_step() > 0 || d.halo_path() == "cuda-aware-mpi")
+        std::cerr << "erg: GPU halos: " << d.halo_path() << ", " << d.host_staged_bytes_per_step()
+                  << " bytes per step between device and host (the most of any rank)\n";
       if (d.peak_rss_bytes_per_cell() > 0) {
         char line[160];
         std::snprintf(line, sizeof line,

@@ -337,9 +337,10 @@ TEST(Cli, BackendFlag) {
 TEST(Cli, BenchPrintsJsonWithStageTimes) {
   const Result r = run(kBench + " --scene A --size 512 --steps 2 --warmup 1 --threads 2 --json");
   ASSERT_EQ(r.code, 0) << r.output;
-  for (const char* key : {"\"ms_per_step\"", "\"stage_ms\"", "\"avalanching\"",
-                          "\"cell_updates_per_s\"", "\"threads\":2", "\"backend\":\"cpu\"",
-                          "\"roofline_ms_per_step\"", "\"host_staged_bytes_per_step\":0"})
+  for (const char* key :
+       {"\"ms_per_step\"", "\"stage_ms\"", "\"avalanching\"", "\"cell_updates_per_s\"",
+        "\"threads\":2", "\"backend\":\"cpu\"", "\"roofline_ms_per_step\"",
+        "\"host_staged_bytes_per_step\":0", "\"halo_path\":\"host\""})
     EXPECT_NE(r.output.find(key), std::string::npos) << key << " in " << r.output;
 }
 

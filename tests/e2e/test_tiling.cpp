@@ -299,6 +299,8 @@ TEST(Tiling, SettlingAColumnAcrossTileCornersGivesTheSameBits) {
   EXPECT_EQ(r.output.find("reached model.avalanche_iterations"), std::string::npos) << r.output;
   const auto one = done_event(r.output);
   EXPECT_EQ(one.avalanche_capped_steps(), 0);
+  EXPECT_EQ(one.halo_path(), "host");  // the CPU backend: nothing staged
+  EXPECT_EQ(one.host_staged_bytes_per_step(), 0);
   EXPECT_GT(one.avalanche_most_iterations(), 4 + 2 * 46) << "too few iterations for later rounds";
   for (const std::string tiles : {"2x1", "2x2"}) {
     const std::string dir = t / tiles;
@@ -307,7 +309,10 @@ TEST(Tiling, SettlingAColumnAcrossTileCornersGivesTheSameBits) {
                                  " --progress-fd 1 --threads 1"));
     ASSERT_EQ(r.code, 0) << r.output;
     EXPECT_EQ(r.output.find("reached model.avalanche_iterations"), std::string::npos) << r.output;
-    EXPECT_EQ(done_event(r.output).avalanche_capped_steps(), 0) << tiles;
+    const auto done = done_event(r.output);
+    EXPECT_EQ(done.avalanche_capped_steps(), 0) << tiles;
+    EXPECT_EQ(done.halo_path(), "host") << tiles;
+    EXPECT_EQ(done.host_staged_bytes_per_step(), 0) << tiles;
     expect_same_runs(t / "one", dir, {"00000002", "00000004"}, "settling on " + tiles + " tiles");
   }
 }

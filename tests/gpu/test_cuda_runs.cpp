@@ -3,7 +3,11 @@
 // which has none, excludes the label by name in its preset):
 // - two runs of the same job give the same bits, in both transport modes;
 // - sand, airborne sand and bedrock are conserved to the unit;
-// - 1, 2 and 4 tiles on one GPU (ranks sharing it) give the same bits;
+// - 1, 2 and 4 tiles on one GPU (ranks sharing it) give the same bits, on
+//   the halo path the MPI library allows (dist/halo_path.h): host-staged,
+//   with its copies overlapping the wind warping (a split fill) and every
+//   exchange's bytes counted, or CUDA-aware MPI with none staged; where
+//   the library is CUDA-aware, the staged path (ERG_CUDA_AWARE_MPI=0) too;
 // - a checkpoint and resume continues bitwise;
 // - the landforms match the CPU backend's: the same exact totals and the
 //   relief within 2% (the float fields may differ in the last bits: the
@@ -18,12 +22,14 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "../common/same_snapshots.h"
 #include "../common/temp_dir.h"
 #include "io/io.h"
+#include "job/worker_event.h"
 
 namespace {
 
@@ -113,6 +119,15 @@ double relief_m(const erg::io::Snapshot& s) {
   return std::sqrt(std::max(0.0, sq / n - (sum / n) * (sum / n)));
 }
 
+// The done event of a worker's progress output (--progress-fd 1).
+erg::v1::WorkerEvent::Done done_of(const std::string& output) {
+  std::istringstream lines(output);
+  for (std::string line; std::getline(lines, line);)
+    if (const auto ev = erg::job::parse_worker_event(line); ev && ev->has_done()) return ev->done();
+  ADD_FAILURE() << "no done event in\n" << output;
+  return {};
+}
+
 class CudaRuns : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(CudaRuns, RepeatTilesRestartConservationAndTheCpu) {
@@ -129,13 +144,37 @@ TEST_P(CudaRuns, RepeatTilesRestartConservationAndTheCpu) {
   const __int128 t0 = total(erg::io::read_snapshot(snapshot(t / "a", 0)));
   for (int step : {20, 40})
     EXPECT_TRUE(total(erg::io::read_snapshot(snapshot(t / "a", step))) == t0) << "step " << step;
-  // Tiles on one GPU: ranks share the device.
-  for (int ranks : {2, 4}) {
-    const fs::path out = t / ("tiles" + std::to_string(ranks));
-    run_ok(kMpirun + " -n " + std::to_string(ranks) + " " + base + "cuda --out " + out.string());
-    erg::test::expect_same_snapshot(snapshot(t / "a", 40), snapshot(out, 40),
-                                    std::to_string(ranks) + " tiles");
-  }
+  // Tiles on one GPU: ranks share the device. The done event says which
+  // halo path ran and what it staged: the frames of every exchange, there
+  // and back (dist/halo_path.h), on the staged path; nothing on the other.
+  const std::string one_tile = kMpirun + " -n 1 " + base + "cuda --progress-fd 1 --out ";
+  std::string out_text;
+  ASSERT_EQ(run(one_tile + (t / "one_rank"), &out_text), 0) << out_text;
+  EXPECT_EQ(done_of(out_text).halo_path(), "device");
+  EXPECT_EQ(done_of(out_text).host_staged_bytes_per_step(), 0);
+  for (const char* env : {"", "ERG_CUDA_AWARE_MPI=0 "})
+    for (int ranks : {2, 4}) {
+      const fs::path out = t / ("tiles" + std::to_string(ranks) + (*env ? "_staged" : ""));
+      ASSERT_EQ(run(std::string(env) + kMpirun + " -n " + std::to_string(ranks) + " " + base +
+                        "cuda --progress-fd 1 --out " + out.string(),
+                    &out_text),
+                0)
+          << out_text;
+      const erg::v1::WorkerEvent::Done done = done_of(out_text);
+      const bool staged = done.halo_path() == "host-staged";
+      EXPECT_TRUE(staged || done.halo_path() == "cuda-aware-mpi") << done.halo_path();
+      if (*env) {
+        EXPECT_TRUE(staged) << "ERG_CUDA_AWARE_MPI=0";
+      }
+      if (staged) {
+        EXPECT_GT(done.host_staged_bytes_per_step(), 0);
+      } else {
+        EXPECT_EQ(done.host_staged_bytes_per_step(), 0);
+      }
+      EXPECT_GT(done.halo_bytes_per_step(), 0);
+      erg::test::expect_same_snapshot(snapshot(t / "a", 40), snapshot(out, 40),
+                                      std::to_string(ranks) + " tiles, " + done.halo_path());
+    }
   // Stop at the checkpoint of step 20, resume to 40.
   run_ok(base + "cuda --out " + (t / "r") + " --steps 20");
   run_ok(kWorker + " --resume " + (t / "r") + " --steps 40 --quiet --backend cuda");

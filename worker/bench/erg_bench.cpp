@@ -431,7 +431,8 @@ int main(int argc, char** argv) {
     << ",\"warmup_ms_per_step\":" << warmup_ms << ",\"cell_updates_per_s\":" << std::scientific
     << cells * a.steps / (total_ms * 1e-3) << std::fixed
     << ",\"halo_messages_per_step\":" << halo_messages << ",\"halo_bytes_per_step\":" << halo_bytes
-    << ",\"host_staged_bytes_per_step\":" << staged_bytes << ",\"stage_ms\":{";
+    << ",\"halo_path\":\"" << erg::dist::halo_path_name(sim.backend().halo_path())
+    << "\",\"host_staged_bytes_per_step\":" << staged_bytes << ",\"stage_ms\":{";
   for (int k = 0; k < erg::kStageCount; ++k)
     o << (k ? "," : "") << "\"" << erg::kStageNames[k] << "\":" << stage_ms[static_cast<size_t>(k)];
   o << "},\"bytes_per_step_model\":" << std::scientific << bytes_per_step << std::fixed
@@ -453,7 +454,8 @@ int main(int argc, char** argv) {
               << " ms/step\n";
     if (nranks > 1)
       std::cout << "  halo exchange: " << halo_messages << " messages, " << halo_bytes / 1e6
-                << " MB per rank and step (the slowest rank's stage times below)\n";
+                << " MB per rank and step (the slowest rank's stage times below), path "
+                << erg::dist::halo_path_name(sim.backend().halo_path()) << "\n";
     if (staged_bytes > 0)
       std::cout << "  staged between device and host for the halos: " << staged_bytes / 1e6
                 << " MB per rank and step\n";

@@ -456,6 +456,7 @@ class JobRun {
       if (!cfg_.resume) io::write_file_atomic(cfg_.out_dir + "/job.json", spec_json_);
       if (cfg_.resume && !cfg_.quiet)
         std::cerr << "erg: resuming " << cfg_.out_dir << " at step " << sim_->step_index() << "\n";
+      if (!cfg_.quiet) log_halo_path();
       report_start();
     }
     MPI_Barrier(ctx_.comm);  // the directories exist before any collective write
@@ -631,14 +632,25 @@ class JobRun {
               << fmt_duration(eta) << "\n";
   }
 
+  // Where a GPU run's ghosts go, and why (the MPI library's answer).
+  void log_halo_path() {
+    const dist::HaloPath p = sim_->backend().halo_path();
+    if (p != dist::HaloPath::kHostStaged && p != dist::HaloPath::kDeviceDirect) return;
+    const dist::MpiCudaSupport m = sim_->exchange().cuda_support();
+    log_line("erg: halo path: ", dist::halo_path_name(p), " (MPI CUDA-aware: built ",
+             m.built ? "yes" : "no", ", at run time ", m.runtime ? "yes" : "no",
+             m.allowed ? "" : ", switched off by ERG_CUDA_AWARE_MPI=0", ")\n");
+  }
+
   // Halo traffic per step since the loop began, the most any rank sent
-  // (messages, bytes). Collective.
-  std::array<long long, 2> halo_traffic_per_step() {
+  // (messages, bytes) or staged between device and host. Collective.
+  std::array<long long, 3> halo_traffic_per_step() {
     const dist::Exchange::Stats st = sim_->exchange().stats();
     const std::int64_t ran = std::max<std::int64_t>(1, sim_->step_index() - first_);
-    long long mine[2] = {(st.messages - stats0_.messages) / ran, (st.bytes - stats0_.bytes) / ran};
-    std::array<long long, 2> most = {0, 0};
-    MPI_Reduce(mine, most.data(), 2, MPI_LONG_LONG, MPI_MAX, 0, ctx_.comm);
+    long long mine[3] = {(st.messages - stats0_.messages) / ran, (st.bytes - stats0_.bytes) / ran,
+                         (st.host_staged_bytes - stats0_.host_staged_bytes) / ran};
+    std::array<long long, 3> most = {0, 0, 0};
+    MPI_Reduce(mine, most.data(), 3, MPI_LONG_LONG, MPI_MAX, 0, ctx_.comm);
     return most;
   }
 
@@ -656,7 +668,7 @@ class JobRun {
 
   // The done event: totals, halo traffic, memory, time per stage. Collective.
   void report_done() {
-    const std::array<long long, 2> halo = halo_traffic_per_step();
+    const std::array<long long, 3> halo = halo_traffic_per_step();
     const std::array<long long, 2> rss = peak_memory();
     const double cells = static_cast<double>(ctx_.d.gnx) * static_cast<double>(ctx_.d.gny);
     const erg::v1::WorkerEvent::Totals end_totals = totals();
@@ -668,6 +680,8 @@ class JobRun {
     *done.mutable_totals() = end_totals;
     done.set_halo_messages_per_step(halo[0]);
     done.set_halo_bytes_per_step(halo[1]);
+    done.set_halo_path(dist::halo_path_name(sim_->backend().halo_path()));
+    done.set_host_staged_bytes_per_step(halo[2]);
     done.set_peak_rss_bytes(rss[0]);
     done.set_peak_rss_bytes_max_rank(rss[1]);
     done.set_peak_rss_bytes_per_cell(static_cast<double>(rss[0]) / cells);
