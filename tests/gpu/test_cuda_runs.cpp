@@ -136,7 +136,10 @@ TEST_P(CudaRuns, RepeatTilesRestartConservationAndTheCpu) {
   std::ofstream(spec) << job(GetParam());
   const std::string base = kWorker + " " + spec.string() + " --quiet --backend ";
   run_ok(base + "cuda --out " + (t / "a"));
-  run_ok(base + "cuda --out " + (t / "b"));
+  std::string text;  // one tile: the periodic wrap on the device, nothing staged
+  ASSERT_EQ(run(base + "cuda --progress-fd 1 --out " + (t / "b"), &text), 0) << text;
+  EXPECT_EQ(done_of(text).halo_path(), "device");
+  EXPECT_EQ(done_of(text).host_staged_bytes_per_step(), 0);
   for (int step : {20, 40})
     erg::test::expect_same_snapshot(snapshot(t / "a", step), snapshot(t / "b", step),
                                     "two CUDA runs, step " + std::to_string(step));
@@ -146,26 +149,21 @@ TEST_P(CudaRuns, RepeatTilesRestartConservationAndTheCpu) {
     EXPECT_TRUE(total(erg::io::read_snapshot(snapshot(t / "a", step))) == t0) << "step " << step;
   // Tiles on one GPU: ranks share the device. The done event says which
   // halo path ran and what it staged: the frames of every exchange, there
-  // and back (dist/halo_path.h), on the staged path; nothing on the other.
-  const std::string one_tile = kMpirun + " -n 1 " + base + "cuda --progress-fd 1 --out ";
-  std::string out_text;
-  ASSERT_EQ(run(one_tile + (t / "one_rank"), &out_text), 0) << out_text;
-  EXPECT_EQ(done_of(out_text).halo_path(), "device");
-  EXPECT_EQ(done_of(out_text).host_staged_bytes_per_step(), 0);
-  for (const char* env : {"", "ERG_CUDA_AWARE_MPI=0 "})
-    for (int ranks : {2, 4}) {
-      const fs::path out = t / ("tiles" + std::to_string(ranks) + (*env ? "_staged" : ""));
-      ASSERT_EQ(run(std::string(env) + kMpirun + " -n " + std::to_string(ranks) + " " + base +
+  // and back (dist/halo_path.h), on the staged path, where the heights'
+  // split fill overlaps its copies with the wind warping; nothing on the
+  // CUDA-aware path, which is then run staged too (ERG_CUDA_AWARE_MPI=0).
+  for (int ranks : {2, 4})
+    for (const std::string env : {"", "ERG_CUDA_AWARE_MPI=0 "}) {
+      const fs::path out = t / ("tiles" + std::to_string(ranks) + (env.empty() ? "" : "_staged"));
+      ASSERT_EQ(run(env + kMpirun + " -n " + std::to_string(ranks) + " " + base +
                         "cuda --progress-fd 1 --out " + out.string(),
-                    &out_text),
+                    &text),
                 0)
-          << out_text;
-      const erg::v1::WorkerEvent::Done done = done_of(out_text);
+          << text;
+      const erg::v1::WorkerEvent::Done done = done_of(text);
       const bool staged = done.halo_path() == "host-staged";
-      EXPECT_TRUE(staged || done.halo_path() == "cuda-aware-mpi") << done.halo_path();
-      if (*env) {
-        EXPECT_TRUE(staged) << "ERG_CUDA_AWARE_MPI=0";
-      }
+      EXPECT_TRUE(staged || (env.empty() && done.halo_path() == "cuda-aware-mpi"))
+          << env << done.halo_path();
       if (staged) {
         EXPECT_GT(done.host_staged_bytes_per_step(), 0);
       } else {
@@ -174,6 +172,7 @@ TEST_P(CudaRuns, RepeatTilesRestartConservationAndTheCpu) {
       EXPECT_GT(done.halo_bytes_per_step(), 0);
       erg::test::expect_same_snapshot(snapshot(t / "a", 40), snapshot(out, 40),
                                       std::to_string(ranks) + " tiles, " + done.halo_path());
+      if (staged) break;  // the MPI library is not CUDA-aware: no other path to compare
     }
   // Stop at the checkpoint of step 20, resume to 40.
   run_ok(base + "cuda --out " + (t / "r") + " --steps 20");
