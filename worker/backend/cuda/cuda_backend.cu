@@ -230,14 +230,27 @@ std::size_t cells_of(const dist::Rect& r) {
 // stream; the host fields of the list name only type and geometry.
 class DevicePacker final : public dist::HaloPacker {
  public:
-  explicit DevicePacker(cudaStream_t s) : s_(s) {}
+  DevicePacker(cudaStream_t s, bool managed) : s_(s), managed_(managed) {}
+  ~DevicePacker() override {
+    for (void* p : buf_)
+      if (p) cudaFree(p);  // no throw from a destructor
+  }
+  DevicePacker(const DevicePacker&) = delete;
+  DevicePacker& operator=(const DevicePacker&) = delete;
   char* buffer(int slot, std::size_t bytes) override {
-    DeviceBuffer<unsigned char>& b = buf_[slot];
-    if (b.size() < bytes) {
+    void*& p = buf_[slot];
+    if (bytes_[slot] < bytes) {
       ERG_CUDA_CHECK(cudaStreamSynchronize(s_));
-      b.reset(bytes);
+      if (p) ERG_CUDA_CHECK(cudaFree(p));
+      p = nullptr;
+      bytes_[slot] = 0;
+      if (managed_)
+        ERG_CUDA_CHECK(cudaMallocManaged(&p, bytes));
+      else
+        ERG_CUDA_CHECK(cudaMalloc(&p, bytes));
+      bytes_[slot] = bytes;
     }
-    return reinterpret_cast<char*>(b.get());
+    return static_cast<char*>(p);
   }
   void pack(std::span<const dist::Ghosts> parts, const dist::RectOf& rect, char* dst) override {
     each(parts, rect, [&](auto* f, const TileGeom& g, const dist::Rect& r) {
@@ -284,13 +297,15 @@ class DevicePacker final : public dist::HaloPacker {
     }
   }
   cudaStream_t s_;
-  DeviceBuffer<unsigned char> buf_[8];
+  bool managed_;
+  void* buf_[8] = {};
+  std::size_t bytes_[8] = {};
 };
 
 }  // namespace
 
-std::unique_ptr<dist::HaloPacker> make_device_packer(cudaStream_t s) {
-  return std::make_unique<DevicePacker>(s);
+std::unique_ptr<dist::HaloPacker> make_device_packer(cudaStream_t s, bool managed) {
+  return std::make_unique<DevicePacker>(s, managed);
 }
 
 namespace {
@@ -308,7 +323,7 @@ dist::HaloPath select_device_and_path(int local_rank, const dist::Exchange& ex) 
 CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
     : m_(model), g_(model.tile), ex_(ex), path_(select_device_and_path(local_rank, ex)) {
   if (path_ == dist::HaloPath::kDeviceDirect) {
-    packer_ = make_device_packer(copy_.get());
+    packer_ = make_device_packer(copy_.get(), false);
     ex_.set_packer(packer_.get());
   }
 

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "backend/backend.h"
+#include "backend/cuda/device_packer.h"
 #include "core/fields.h"
 #include "core/grid.h"
 #include "core/units.h"
@@ -237,10 +238,6 @@ inline constexpr units_t kUnlimited = std::numeric_limits<units_t>::max() / 4;
 template <class T>
 void fill_halo_periodic(T* f, const TileGeom& g, int width);
 void fold_halo_periodic(units_t* f, const TileGeom& g, int width);
-
-// The packer of a CUDA-aware MPI (dist/halo_packer.h): device fields into
-// device buffers, on `s` (cuda_backend.cu).
-std::unique_ptr<dist::HaloPacker> make_device_packer(cudaStream_t s);
 
 // ---- the backend --------------------------------------------------------------
 class CudaBackend final : public Backend {
