@@ -638,13 +638,8 @@ TEST_P(Halo, StagedStepsGiveTheExchangeOfTheWholeFields) {
 // backend's buffers) and its own message buffers. The exchange must route
 // every cell through it (the host fields stay as they were) and give the
 // same bits as the host exchange.
-class CopyPacker final : public HaloPacker {
+class CopyPacker final : public HostBufferPacker {
  public:
-  char* buffer(int slot, std::size_t bytes) override {
-    std::vector<char>& b = buf_[slot];
-    if (b.size() < bytes) b.resize(bytes);
-    return b.data();
-  }
   void pack(std::span<const Ghosts> parts, const RectOf& rect, char* p) override {
     each_row(parts, rect, [&](auto* cell, int n) {
       const std::size_t bytes = static_cast<std::size_t>(n) * sizeof(*cell);
@@ -686,7 +681,6 @@ class CopyPacker final : public HaloPacker {
           g.field);
     }
   }
-  std::vector<char> buf_[8];
 };
 
 TEST_P(Halo, PackerMovesTheDeviceCopiesOnly) {

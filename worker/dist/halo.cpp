@@ -59,13 +59,8 @@ std::size_t bytes_of_all(std::span<const Ghosts> parts, const RectOf& rect) {
 }
 
 // The packer of host fields: row copies in host memory.
-class HostPacker final : public HaloPacker {
+class HostPacker final : public HostBufferPacker {
  public:
-  char* buffer(int slot, std::size_t bytes) override {
-    std::vector<char>& b = buf_[slot];
-    if (b.size() < bytes) b.resize(bytes);
-    return b.data();
-  }
   void pack(std::span<const Ghosts> parts, const RectOf& rect, char* p) override {
     each(parts, [&](auto& f, int w) {
       using T = typename std::decay_t<decltype(f)>::value_type;
@@ -102,9 +97,6 @@ class HostPacker final : public HaloPacker {
       for (int y = r.y0; y < r.y1; ++y) std::fill(&f(r.x0, y), &f(r.x0, y) + (r.x1 - r.x0), T{});
     });
   }
-
- private:
-  std::vector<char> buf_[8];
 };
 
 int count_of(std::size_t bytes) {

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <span>
+#include <vector>
 
 #include "dist/ghosts.h"
 
@@ -59,6 +60,19 @@ class HaloPacker {
   // Every pack is complete: MPI may read the buffers (a device waits for
   // its kernels here).
   virtual void ready() {}
+};
+
+// A packer whose messages live in host memory (buffers that grow).
+class HostBufferPacker : public HaloPacker {
+ public:
+  char* buffer(int slot, std::size_t bytes) override {
+    std::vector<char>& b = buf_[slot];
+    if (b.size() < bytes) b.resize(bytes);
+    return b.data();
+  }
+
+ private:
+  std::vector<char> buf_[8];
 };
 
 }  // namespace erg::dist
