@@ -377,3 +377,206 @@ def mass_balance(snaps, event_steps):
         checked += 1
         drifts.append(sand_total_units(b) - sand_total_units(a))
     return checked, drifts, skipped
+
+
+# --- dune orientation under two winds --------------------------------------------
+#
+# Courrech du Pont, Narteau & Gao 2014 (Geology 42, 743-746): under a
+# multidirectional wind, dunes take one of two orientations. The sand flux at
+# a crest is the flat-bed flux sped up by 1 + gamma |sin(theta)|, theta the
+# angle between the wind and the crest (gamma = 1.6, as in Gao, Narteau,
+# Rozier & Courrech du Pont 2015, Sci. Rep. 5, 14677).
+# - Bed-instability mode (sand everywhere): the crests align with the
+#   orientation alpha that maximises the gross bedform-normal transport
+#   sum_i Q_i (1 + gamma |sin(theta_i - alpha)|) |sin(theta_i - alpha)|
+#   (Rubin & Hunter 1987, with the crest speed-up).
+# - Fingering mode (a sand source on bedrock): the dune elongates along the
+#   resultant flux at its crest, the orientation alpha where the
+#   crest-normal components of the sped-up fluxes cancel,
+#   sum_i Q_i (1 + gamma |sin(theta_i - alpha)|) sin(theta_i - alpha) = 0,
+#   with the along-crest component pointing towards alpha.
+# A wind is (direction in degrees, flux or any weight proportional to it:
+# time fraction times flux).
+
+SPEED_UP_GAMMA = 1.6
+
+
+def two_winds(primary_deg, divergence_deg, flux_ratio):
+    """The two alternating winds of a bidirectional regime (job.proto
+    BidirectionalWind): the primary, and the secondary at primary +
+    divergence carrying 1 / flux_ratio of the primary's flux."""
+    return [(float(primary_deg), float(flux_ratio)), (float(primary_deg + divergence_deg), 1.0)]
+
+
+def _crest_terms(winds, alpha_rad, gamma):
+    """Per orientation alpha: the sped-up fluxes' crest-normal sums (signed and
+    gross) and the along-crest sum."""
+    normal = np.zeros_like(alpha_rad)
+    gross = np.zeros_like(alpha_rad)
+    along = np.zeros_like(alpha_rad)
+    for direction, q in winds:
+        rel = math.radians(direction) - alpha_rad
+        s = np.sin(rel)
+        crest = q * (1.0 + gamma * np.abs(s))
+        normal += crest * s
+        gross += crest * np.abs(s)
+        along += crest * np.cos(rel)
+    return normal, gross, along
+
+
+def bed_instability_orientation(winds, gamma=SPEED_UP_GAMMA, step_deg=0.01):
+    """Crest orientation (degrees in [0, 180)) of the bed-instability mode:
+    the maximum of the gross bedform-normal transport with the crest
+    speed-up, found on a grid of `step_deg` and refined by a parabola
+    through the best point and its neighbours."""
+    n = int(round(180.0 / step_deg))
+    alpha = np.radians(np.arange(n) * step_deg)
+    _, gross, _ = _crest_terms(winds, alpha, gamma)
+    k = int(np.argmax(gross))
+    g0, g1, g2 = gross[(k - 1) % n], gross[k], gross[(k + 1) % n]
+    denom = g0 - 2.0 * g1 + g2
+    shift = 0.5 * (g0 - g2) / denom if denom < 0 else 0.0
+    return float((k + shift) * step_deg) % 180.0
+
+
+def fingering_orientation(winds, gamma=SPEED_UP_GAMMA, step_deg=0.5):
+    """Elongation direction (degrees in [0, 360), the way the finger grows)
+    of the fingering mode: a zero of the crest-normal flux where the
+    along-crest flux is positive, refined by bisection. Where several exist
+    (not for two winds less than 180 degrees apart), the one closest to the
+    resultant of the plain fluxes is taken."""
+    def normal_at(a_deg):
+        n, _, along = _crest_terms(winds, np.radians(np.array([a_deg])), gamma)
+        return float(n[0]), float(along[0])
+
+    grid_deg = np.arange(0.0, 360.0, step_deg)
+    normal, _, along = _crest_terms(winds, np.radians(grid_deg), gamma)
+    roots = []
+    for k in range(len(grid_deg)):
+        a, b = grid_deg[k], grid_deg[k] + step_deg
+        fa, fb = normal[k], normal[(k + 1) % len(grid_deg)]
+        if fa == 0.0:
+            if along[k] > 0:
+                roots.append(float(a))
+            continue
+        if fa * fb >= 0.0:
+            continue
+        for _ in range(60):
+            m = 0.5 * (a + b)
+            fm, _ = normal_at(m)
+            if (fm < 0.0) == (fa < 0.0):
+                a, fa = m, fm
+            else:
+                b = m
+        root = 0.5 * (a + b)
+        if normal_at(root)[1] > 0.0:
+            roots.append(root % 360.0)
+    if not roots:
+        raise ValueError("no fingering orientation: the crest fluxes cancel")
+    rx = sum(q * math.cos(math.radians(d)) for d, q in winds)
+    ry = sum(q * math.sin(math.radians(d)) for d, q in winds)
+    resultant = math.degrees(math.atan2(ry, rx))
+    return min(roots, key=lambda r: abs(wrap_delta(r - resultant, 360.0)))
+
+
+def axis_difference(a_deg, b_deg):
+    """Angle between two axes (orientations modulo 180 degrees), in [0, 90]."""
+    d = (a_deg - b_deg) % 180.0
+    return min(d, 180.0 - d)
+
+
+def axial_mean(angles_deg, weights):
+    """Weighted mean of axes (modulo 180 degrees) by doubling the angles:
+    (mean in [0, 180), resultant length in [0, 1]: 1 when all agree)."""
+    a = np.radians(2.0 * np.asarray(angles_deg, dtype=np.float64))
+    w = np.asarray(weights, dtype=np.float64)
+    c, s = float(np.sum(w * np.cos(a))), float(np.sum(w * np.sin(a)))
+    total = float(np.sum(w))
+    mean = (0.5 * math.degrees(math.atan2(s, c))) % 180.0
+    return mean, (math.hypot(c, s) / total if total > 0 else 0.0)
+
+
+def body_elongation(dune, sand, cell_size_m):
+    """Elongation axis of one sand body (from dunes()): the major axis of the
+    sand-weighted second moments of its cells about its centroid (positions
+    wrapped to the nearest image, so a body across the seam is measured
+    whole; a body longer than half the domain is not). Returns the axis
+    (degrees in [0, 180)), the major and minor standard deviations (m)."""
+    ny, nx = sand.shape
+    ix, iy = dune["ix"], dune["iy"]
+    dx = wrap_delta(ix - dune["x_m"] / cell_size_m, nx) * cell_size_m
+    dy = wrap_delta(iy - dune["y_m"] / cell_size_m, ny) * cell_size_m
+    w = sand[iy, ix]
+    w = w / w.sum()
+    mx, my = float(np.sum(w * dx)), float(np.sum(w * dy))
+    dx, dy = dx - mx, dy - my
+    sxx, syy, sxy = float(np.sum(w * dx * dx)), float(np.sum(w * dy * dy)), float(np.sum(w * dx * dy))
+    axis = (0.5 * math.degrees(math.atan2(2.0 * sxy, sxx - syy))) % 180.0
+    half = 0.5 * (sxx + syy)
+    disc = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy * sxy)
+    return axis, math.sqrt(half + disc), math.sqrt(max(half - disc, 0.0))
+
+
+def elongation_orientation(sand, cell_size_m, threshold_m, min_cells, min_aspect=1.5):
+    """The elongation axis of the dunes of a sand-limited field (fingering
+    mode): the volume-weighted axial mean of the axes of the bodies thicker
+    than `threshold_m` that are elongated (major over minor standard
+    deviation at least `min_aspect`). Returns a dict: axis (degrees in
+    [0, 180), nan without elongated bodies), agreement (the axial mean's
+    resultant length), bodies measured, bodies found, and the per-body rows
+    (axis, aspect, volume)."""
+    bodies = dunes(sand, cell_size_m, threshold_m, min_cells)
+    rows = []
+    for d in bodies:
+        axis, major, minor = body_elongation(d, sand, cell_size_m)
+        aspect = major / minor if minor > 0 else float("inf")
+        rows.append({"axis_deg": axis, "aspect": aspect, "volume_m3": d["volume_m3"]})
+    long = [r for r in rows if r["aspect"] >= min_aspect]
+    if not long:
+        return {"axis_deg": float("nan"), "agreement": 0.0, "measured": 0,
+                "bodies": len(rows), "rows": rows}
+    axis, agreement = axial_mean([r["axis_deg"] for r in long], [r["volume_m3"] for r in long])
+    return {"axis_deg": axis, "agreement": agreement, "measured": len(long),
+            "bodies": len(rows), "rows": rows}
+
+
+def crest_orientation(height, cell_size_m):
+    """Crest orientation (degrees in [0, 180)) of a field of ridges (the
+    bed-instability mode), measured twice: from the strongest wavevector of
+    the 2-D spectrum (crests perpendicular to it) and from the structure
+    tensor (with its coherence)."""
+    sp = spectrum_wavelength(height, cell_size_m)
+    st = structure_orientation(height, cell_size_m)
+    return {"spectrum_deg": (sp["wavevector_deg"] + 90.0) % 180.0,
+            "tensor_deg": st["crest_deg"], "coherence": st["coherence"],
+            "wavelength_m": sp["wavelength_m"]}
+
+
+def autocorrelation_axis(field, cell_size_m, level=0.5):
+    """Elongation axis of a pattern from its periodic autocorrelation (FFT):
+    the second moments of the central lobe, the lags connected to zero lag
+    where the autocorrelation of the field's departure from its mean stays
+    above `level` of its zero-lag value. Needs no segmentation, so bodies
+    merged by thin sand tails or wrapping the torus are measured as they
+    are. Returns (axis in degrees in [0, 180), major / minor standard
+    deviation of the lobe)."""
+    from scipy import ndimage
+    f = field - field.mean()
+    ac = np.real(np.fft.ifft2(np.abs(np.fft.fft2(f)) ** 2))
+    if ac[0, 0] <= 0:
+        return float("nan"), 1.0
+    ac = np.fft.fftshift(ac / ac[0, 0])
+    ny, nx = ac.shape
+    labels, _ = ndimage.label(ac >= level)
+    lobe = labels == labels[ny // 2, nx // 2]
+    iy, ix = np.nonzero(lobe)
+    w = ac[iy, ix]
+    dx = (ix - nx // 2) * cell_size_m
+    dy = (iy - ny // 2) * cell_size_m
+    sxx, syy, sxy = (float(np.sum(w * dx * dx)), float(np.sum(w * dy * dy)),
+                     float(np.sum(w * dx * dy)))
+    axis = (0.5 * math.degrees(math.atan2(2.0 * sxy, sxx - syy))) % 180.0
+    half = 0.5 * (sxx + syy)
+    disc = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy * sxy)
+    minor = math.sqrt(max(half - disc, 0.0))
+    return axis, (math.sqrt(half + disc) / minor if minor > 0 else float("inf"))

@@ -9,6 +9,7 @@ Usually started by `erg validate --out DIR [--quick]`, which passes --worker.
 """
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -731,6 +732,140 @@ def isotropy_law(rep, T, scenes):
                 + (f"; pile lost at {', '.join(lost)} deg" if lost else ""))
 
 
+def orientation_case(job):
+    """The orientation scene's bidirectional wind: (primary, divergence, flux
+    ratio, the winds for measure's predictions)."""
+    b = job.get("wind", {}).get("bidirectional")
+    if b is None:
+        raise SystemExit(f"erg validate: scene {job.get('name')}: the orientation law needs a bidirectional wind")
+    primary = float(b.get("direction_deg", 0.0))
+    theta = float(b["angle_deg"])
+    n = float(b.get("flux_ratio", 1.0))
+    return primary, theta, n, M.two_winds(primary, theta, n)
+
+
+def orientation_law(rep, T, scenes):
+    """scenes: (scene file name, snapshots, job) of orientation_bed_* and
+    orientation_finger_*: dunes under two alternating winds against the
+    two modes of Courrech du Pont, Narteau & Gao 2014."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    O = T["orientation"]
+    det = T["detection"]
+    tol = O["tolerance_deg"]
+    rep.add("## 10. Dune orientation under two winds", "")
+    rep.add("Two winds of the same speed alternate (a bidirectional regime, every "
+            f"{', '.join(sorted({str(j['wind']['bidirectional'].get('period_steps', 20)) for _, _, j in scenes}))} steps): "
+            "the primary along the grid's x axis, the secondary at the divergence angle theta, blowing "
+            "1 / N of the time so that the flux ratio is N. Courrech du Pont, Narteau & Gao (2014) "
+            "predict two orientations, with the crest flux sped up by 1 + gamma |sin(wind - crest)|, "
+            f"gamma = {M.SPEED_UP_GAMMA:g} (Gao et al. 2015): in the **bed-instability** mode (a flat "
+            "bed of sand with small random relief) the crests align where the gross crest-normal "
+            "transport is largest; in the **fingering** mode (a sand pile on bare rock) the dune "
+            "elongates along the resultant flux at its crest (the crest-normal fluxes cancel). "
+            "Measured on the last snapshot: the crest orientation of the bed from the structure tensor "
+            "of the height (the 2-D spectrum's strongest wavevector is listed too; on these domains its "
+            "directions are harmonics several degrees apart), the elongation of the fingers from the "
+            "central lobe of the sand thickness's periodic autocorrelation (above "
+            f"{O['autocorrelation_level']:g} of its peak; the volume-weighted mean axis of the elongated "
+            f"bodies thicker than {det['dune_sand_threshold_m']} m is listed too). An orientation is an "
+            "axis (modulo 180 deg), in degrees counter-clockwise from x. The law holds when the measured "
+            f"axis is within {tol:g} deg of the prediction and a pattern formed: the bed's relief grew "
+            f"and its coherence reached {O['min_coherence']:g}, the fingers' lobe is at least "
+            f"{O['min_elongation']:g} times as long as wide.", "")
+    rep.add("| scene | transport | mode | theta (deg) | N | predicted (deg) | other mode's (deg) "
+            "| measured (deg) | difference (deg) | pattern | also measured | verdict |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|")
+    rows = []
+    for name, snaps, job in scenes:
+        primary, theta, n, winds = orientation_case(job)
+        mode = "bed" if "_bed_" in name else "finger"
+        bed_pred = M.bed_instability_orientation(winds)
+        finger_pred = M.fingering_orientation(winds) % 180.0
+        first, last = snaps[0], snaps[-1]
+        cell = last["cell_size_m"]
+        height = last["sand"] + last["bedrock"]
+        relief = lambda s: float((s["sand"] + s["bedrock"]).max() - (s["sand"] + s["bedrock"]).min())
+        if mode == "bed":
+            pred, other = bed_pred, finger_pred
+            co = M.crest_orientation(height, cell)
+            measured = co["tensor_deg"]
+            formed = relief(last) > relief(first) and co["coherence"] >= O["min_coherence"]
+            pattern = (f"relief {relief(first):.1f} -> {relief(last):.1f} m, coherence "
+                       f"{co['coherence']:.2f}, wavelength {co['wavelength_m']:.0f} m")
+            also = f"spectrum {co['spectrum_deg']:.1f}"
+        else:
+            pred, other = finger_pred, bed_pred
+            measured, elong = M.autocorrelation_axis(last["sand"], cell, O["autocorrelation_level"])
+            formed = elong >= O["min_elongation"]
+            bodies = M.elongation_orientation(last["sand"], cell, det["dune_sand_threshold_m"],
+                                              det["dune_min_cells"], O["min_elongation"])
+            pattern = f"lobe {elong:.2f} times as long as wide"
+            also = (f"bodies {bodies['axis_deg']:.1f} ({bodies['measured']} of {bodies['bodies']})"
+                    if bodies["measured"] else f"bodies: none elongated ({bodies['bodies']} found)")
+        diff = M.axis_difference(measured, pred)
+        ok = formed and diff <= tol
+        row = {"name": job["name"], "mode": mode, "transport": job.get("transport", "EXPECTED"),
+               "theta": theta, "n": n, "pred": pred, "other": other, "measured": measured,
+               "diff": diff, "formed": formed, "ok": ok, "height": height, "cell": cell,
+               "step": last["step"]}
+        rows.append(row)
+        rep.add(f"| {job['name']} | {row['transport']} | {'bed instability' if mode == 'bed' else 'fingering'} "
+                f"| {theta:g} | {n:g} | {pred:.1f} | {other:.1f} | {measured:.1f} | {diff:.1f} | "
+                f"{pattern}{'' if formed else ' (no pattern)'} | {also} | {'PASS' if ok else 'FAIL'} |")
+    rep.add("")
+    for mode, title in (("bed", "bed instability"), ("finger", "fingering")):
+        for transport in sorted({r["transport"] for r in rows if r["mode"] == mode}):
+            rs = [r for r in rows if r["mode"] == mode and r["transport"] == transport]
+            ok = all(r["ok"] for r in rs)
+            worst = max(r["diff"] for r in rs)
+            rep.add(f"{title}, {transport}: {verdict(ok)}: differences "
+                    + ", ".join(f"{r['diff']:.1f}" for r in rs) + f" deg (allowed {tol:g})"
+                    + ("" if all(r["formed"] for r in rs) else
+                       "; no pattern in " + ", ".join(r["name"] for r in rs if not r["formed"])) + ".", "")
+            rep.law(f"Two-wind orientation, {title} ({transport})", ok,
+                    f"worst {worst:.1f} deg from the prediction over {len(rs)} scenes (allowed {tol:g})"
+                    + ("" if all(r["formed"] for r in rs) else
+                       f"; {sum(not r['formed'] for r in rs)} without a pattern"))
+    # Orientation against divergence: predictions for the scenes' flux ratios, measured points.
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.8))
+    th = np.linspace(90.0, 180.0, 91)
+    for ax, mode, title in ((axes[0], "bed", "bed instability: crest"),
+                            (axes[1], "finger", "fingering: elongation")):
+        rs = [r for r in rows if r["mode"] == mode]
+        for n in sorted({r["n"] for r in rs}):
+            f = M.bed_instability_orientation if mode == "bed" else (lambda w: M.fingering_orientation(w) % 180.0)
+            line, = ax.plot(th, [f(M.two_winds(0.0, t, n)) for t in th], "-", lw=1, label=f"predicted, N = {n:g}")
+            for r in rs:
+                if r["n"] != n:
+                    continue
+                # The measured axis drawn on the prediction's side of the 180 deg wrap.
+                m = r["pred"] + M.wrap_delta(r["measured"] - r["pred"], 180.0)
+                ax.plot(r["theta"], m, "o" if r["transport"] == "STOCHASTIC" else "s",
+                        mfc="none" if not r["formed"] else line.get_color(), color=line.get_color())
+        ax.plot([], [], "ko", label="stochastic")
+        ax.plot([], [], "ks", label="expected (hollow: no pattern)")
+        ax.set_xlabel("divergence angle theta (deg)")
+        ax.set_ylabel("orientation from the primary wind (deg)")
+        ax.set_title(title)
+        ax.legend(fontsize=6)
+    rep.plot(fig, "orientation.png", "orientation against divergence")
+    # The last heightfields with the predicted (dashed) and measured (solid) axes.
+    fig, axes = plt.subplots(1, len(rows), figsize=(2.2 * len(rows), 2.5), squeeze=False)
+    for ax, r in zip(axes[0], rows):
+        n = r["height"].shape[0] * r["cell"]
+        ax.imshow(r["height"], origin="lower", extent=(0, n, 0, n), cmap="terrain")
+        for a, style in ((r["pred"], "w--"), (r["measured"], "r-")):
+            u = 0.4 * n * np.array([math.cos(math.radians(a)), math.sin(math.radians(a))])
+            ax.plot([n / 2 - u[0], n / 2 + u[0]], [n / 2 - u[1], n / 2 + u[1]], style, lw=1)
+        ax.set_title(f"{r['mode']} {r['theta']:g}/{r['n']:g} {r['transport'][:3].lower()}", fontsize=7)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    rep.plot(fig, "orientation_fields.png", "orientation scenes, last step", dpi=80)
+    rep.add(f"Source: {O['source']}.", "")
+
+
 def mass_law(rep, T, runs):
     A = T["mass"]
     rep.add("## 5. Mass", "")
@@ -774,6 +909,7 @@ def main():
     t_start = time.time()
     jobs, dirs, timings = {}, {}, {}
     names = list(SCENES) + [n for n in OPTIONAL + ISOTROPY if (scene_dir / f"{n}.json").exists()]
+    names += sorted(p.stem for p in scene_dir.glob("orientation_*.json"))
     for i, name in enumerate(names, start=1):
         jp = scene_dir / f"{name}.json"
         jobs[name] = json.loads(jp.read_text())
@@ -792,9 +928,14 @@ def main():
     isnaps = {n: snapshots(dirs[n]) for n in inames}
     if inames:
         isotropy_law(rep, T, [(jobs[n]["name"], isnaps[n], jobs[n]) for n in inames])
+    onames = [n for n in names if n.startswith("orientation_")]
+    osnaps = {n: snapshots(dirs[n]) for n in onames}
+    if onames:
+        orientation_law(rep, T, [(n, osnaps[n], jobs[n]) for n in onames])
     mass_law(rep, T, [(jobs["barchans"]["name"], bsnaps, jobs["barchans"])] +
              [(jobs[n]["name"], ts[n], jobs[n]) for n in ts] +
-             [(jobs[n]["name"], isnaps[n], jobs[n]) for n in inames])
+             [(jobs[n]["name"], isnaps[n], jobs[n]) for n in inames] +
+             [(jobs[n]["name"], osnaps[n], jobs[n]) for n in onames])
     migration_law(rep, T, rows, jobs["barchans"])
     bjob = jobs["barchans"]
     flux_law(rep, T, calibrate(scene_dir / "barchans.json", None, 1) if physical(bjob) else None, bjob)

@@ -3,7 +3,8 @@
 synthetic fields whose answers are known: a sinusoidal transverse field of
 known wavelength and orientation, a Gaussian pile moved by a known offset
 across the torus seam, a cone of known slope, a crescent of known width,
-exact power laws and mass ledgers."""
+exact power laws and mass ledgers; ridges and elongated bodies at known
+angles, and the two-wind orientation laws against values worked out by hand."""
 import math
 import os
 import sys
@@ -224,6 +225,197 @@ class Mass(unittest.TestCase):
         snaps = [self.snap(0, 10, 0), self.snap(100, 50, 0), self.snap(200, 50, 0)]
         checked, drifts, skipped = M.mass_balance(snaps, [50])
         self.assertEqual((checked, drifts, skipped), (1, [0], [(0, 100)]))
+
+
+class TwoWindOrientation(unittest.TestCase):
+    """Courrech du Pont, Narteau & Gao 2014: the predictions against values
+    worked out by hand from the paper's formulas, with the primary wind
+    along x (0 deg), the secondary at the divergence theta with 1 / N of its
+    flux, gamma the crest speed-up."""
+
+    def test_symmetric_winds_switch_at_90_degrees(self):
+        # N = 1: the gross normal transport of crests perpendicular to the
+        # resultant (theta / 2 + 90) is 2 h(cos(theta / 2)), of crests along
+        # it 2 h(sin(theta / 2)), h(s) = s (1 + gamma s): perpendicular wins
+        # below 90 deg, parallel above.
+        for theta in (40.0, 60.0, 80.0):
+            alpha = M.bed_instability_orientation(M.two_winds(0.0, theta, 1.0))
+            self.assertAlmostEqual(M.axis_difference(alpha, theta / 2 + 90.0), 0.0, places=3)
+        for theta in (100.0, 120.0, 140.0, 160.0):
+            alpha = M.bed_instability_orientation(M.two_winds(0.0, theta, 1.0))
+            self.assertAlmostEqual(M.axis_difference(alpha, theta / 2), 0.0, places=3)
+            # Fingering: by symmetry along the bisector, the resultant.
+            self.assertAlmostEqual(M.fingering_orientation(M.two_winds(0.0, theta, 1.0)),
+                                   theta / 2, places=6)
+
+    def test_without_speed_up_rubin_hunter_and_the_resultant(self):
+        # gamma = 0, alpha between the winds: d/dalpha [N sin a + sin(theta - a)]
+        # = 0 gives tan a = (N - cos theta) / sin theta (Rubin & Hunter 1987);
+        # the fingering direction is the resultant, atan2(sin theta, N + cos theta).
+        for theta, n in ((120.0, 2.0), (140.0, 3.0), (160.0, 5.0), (100.0, 4.0)):
+            t = math.radians(theta)
+            winds = M.two_winds(0.0, theta, n)
+            bed = math.degrees(math.atan((n - math.cos(t)) / math.sin(t)))
+            self.assertAlmostEqual(M.bed_instability_orientation(winds, gamma=0.0), bed, places=3)
+            res = math.degrees(math.atan2(math.sin(t), n + math.cos(t)))
+            self.assertAlmostEqual(M.fingering_orientation(winds, gamma=0.0), res, places=6)
+        # theta = 120, N = 2 by hand: tan a = 2.5 / 0.866, a = 70.89 deg.
+        self.assertAlmostEqual(M.bed_instability_orientation(M.two_winds(0, 120, 2), gamma=0.0),
+                               70.893, places=2)
+
+    def test_with_speed_up_stationary_and_balanced(self):
+        # gamma = 1.6: the bed-instability crest makes the derivative of the
+        # gross normal transport N h(sin a) + h(sin(theta - a)) vanish,
+        # N cos a (1 + 2 gamma sin a) = cos(theta - a) (1 + 2 gamma sin(theta - a));
+        # the finger balances the crest-normal fluxes,
+        # N (1 + gamma sin a) sin a = (1 + gamma sin(theta - a)) sin(theta - a).
+        g = M.SPEED_UP_GAMMA
+        self.assertEqual(g, 1.6)
+        for theta, n in ((120.0, 2.0), (140.0, 3.0), (160.0, 5.0), (100.0, 1.5)):
+            t = math.radians(theta)
+            winds = M.two_winds(0.0, theta, n)
+            a = math.radians(M.bed_instability_orientation(winds))
+            self.assertTrue(0 < a < t)
+            d = n * math.cos(a) * (1 + 2 * g * math.sin(a)) \
+                - math.cos(t - a) * (1 + 2 * g * math.sin(t - a))
+            self.assertAlmostEqual(d, 0.0, places=3)
+            f = math.radians(M.fingering_orientation(winds))
+            bal = n * (1 + g * math.sin(f)) * math.sin(f) \
+                - (1 + g * math.sin(t - f)) * math.sin(t - f)
+            self.assertAlmostEqual(bal, 0.0, places=9)
+            # The speed-up turns the finger from the resultant towards the
+            # more oblique (secondary) wind.
+            self.assertGreater(math.degrees(f), math.degrees(math.atan2(math.sin(t), n + math.cos(t))))
+        # Worked values (theta = 120 deg, N = 2): bed 73.67 deg, finger 39.24 deg.
+        self.assertAlmostEqual(M.bed_instability_orientation(M.two_winds(0, 120, 2)), 73.67, places=1)
+        self.assertAlmostEqual(M.fingering_orientation(M.two_winds(0, 120, 2)), 39.24, places=1)
+
+    def test_reversing_winds(self):
+        # theta = 180 deg: crests across both winds; a finger along the stronger.
+        for n in (1.5, 3.0):
+            winds = M.two_winds(30.0, 180.0, n)
+            self.assertAlmostEqual(M.axis_difference(M.bed_instability_orientation(winds), 120.0),
+                                   0.0, places=3)
+            self.assertAlmostEqual(M.fingering_orientation(winds), 30.0, places=6)
+
+    def test_rotating_the_winds_rotates_the_answers(self):
+        for turn in (17.0, 95.0, 250.0):
+            a = M.two_winds(0.0, 130.0, 2.5)
+            b = M.two_winds(turn, 130.0, 2.5)
+            self.assertAlmostEqual(M.axis_difference(M.bed_instability_orientation(b),
+                                                     M.bed_instability_orientation(a) + turn), 0.0, places=3)
+            self.assertAlmostEqual(M.wrap_delta(M.fingering_orientation(b)
+                                                - M.fingering_orientation(a) - turn, 360.0), 0.0, places=6)
+
+    def test_axis_helpers(self):
+        self.assertAlmostEqual(M.axis_difference(10.0, 175.0), 15.0)
+        self.assertAlmostEqual(M.axis_difference(0.0, 90.0), 90.0)
+        mean, r = M.axial_mean([170.0, 10.0], [1.0, 1.0])
+        self.assertAlmostEqual(M.axis_difference(mean, 0.0), 0.0, places=9)
+        self.assertAlmostEqual(r, math.cos(math.radians(20.0)), places=9)
+
+
+class Orientation(unittest.TestCase):
+    def test_crests_of_oblique_ridges_with_noise(self):
+        # Wavevector (2, 7) cycles over a 224 m torus of 1 m cells: crests
+        # perpendicular to it, at atan2(7, 2) + 90 = 164.05 deg.
+        x, y = grid(224, 224, 1.0)
+        rng = np.random.default_rng(1)
+        h = 2.0 + np.sin(2 * math.pi * (2 * x + 7 * y) / 224.0) + 0.2 * rng.standard_normal(x.shape)
+        o = M.crest_orientation(h, 1.0)
+        expected = math.degrees(math.atan2(7, 2)) + 90.0
+        self.assertAlmostEqual(M.axis_difference(o["spectrum_deg"], expected), 0.0, places=6)
+        self.assertLess(M.axis_difference(o["tensor_deg"], expected), 1.0)
+        self.assertAlmostEqual(o["wavelength_m"], 224.0 / math.hypot(2, 7), delta=0.5)
+
+    def test_elongated_bodies_at_a_known_angle(self):
+        # Elliptical Gaussian ridges (12 m by 3 m standard deviations) at
+        # 39 deg, one across both seams, and one round pile that is not
+        # elongated: the axis is 39 deg.
+        nx = ny = 160
+        x, y = grid(nx, ny, 1.0)
+        a = math.radians(39.0)
+        sand = np.zeros((ny, nx))
+        for cx, cy in ((40.0, 40.0), (120.0, 60.0), (2.0, 150.0), (90.0, 125.0)):
+            dx = M.wrap_delta(x - cx, nx)
+            dy = M.wrap_delta(y - cy, ny)
+            u = dx * math.cos(a) + dy * math.sin(a)
+            v = -dx * math.sin(a) + dy * math.cos(a)
+            sand += 4.0 * np.exp(-0.5 * ((u / 12.0) ** 2 + (v / 3.0) ** 2))
+        sand += 4.0 * np.exp(-0.5 * ((M.wrap_delta(x - 130.0, nx) ** 2
+                                      + M.wrap_delta(y - 130.0, ny) ** 2) / 9.0))
+        e = M.elongation_orientation(sand, 1.0, 0.3, 20)
+        self.assertEqual(e["bodies"], 5)
+        self.assertEqual(e["measured"], 4)
+        self.assertLess(M.axis_difference(e["axis_deg"], 39.0), 0.5)
+        self.assertGreater(e["agreement"], 0.99)
+        # The same bodies turned by 90 deg + 39 deg.
+        e2 = M.elongation_orientation(sand.T, 1.0, 0.3, 20)
+        self.assertLess(M.axis_difference(e2["axis_deg"], 51.0), 0.5)
+
+    def test_no_elongated_body(self):
+        x, y = grid(64, 64, 1.0)
+        sand = 3.0 * np.exp(-0.5 * ((x - 32) ** 2 + (y - 32) ** 2) / 25.0)
+        e = M.elongation_orientation(sand, 1.0, 0.3, 20)
+        self.assertEqual(e["measured"], 0)
+        self.assertTrue(math.isnan(e["axis_deg"]))
+
+
+class OrientationSection(unittest.TestCase):
+    """validate.py's section 10 on synthetic last snapshots: ridges and
+    fingers drawn at the predicted orientation pass, ridges drawn at the
+    other mode's orientation fail, with the measured numbers in the table."""
+
+    def test_section_passes_and_fails_as_drawn(self):
+        import json
+        import tempfile
+        from pathlib import Path
+        import validate as V
+        T = json.loads(Path(os.path.dirname(M.__file__), "thresholds.json").read_text())
+
+        def job(name, theta, n, transport="EXPECTED"):
+            return {"name": name, "transport": transport,
+                    "wind": {"bidirectional": {"speed_mps": 5, "direction_deg": 0, "angle_deg": theta,
+                                               "flux_ratio": n, "period_steps": 20}}}
+
+        def snap(sand, step):
+            return {"sand": sand, "bedrock": np.zeros_like(sand), "cell_size_m": 1.0, "step": step}
+
+        x, y = grid(256, 256, 1.0)
+        rng = np.random.default_rng(3)
+        flat = 2.5 + rng.uniform(0, 1, x.shape)
+        # theta = 120, N = 2: crests at 73.67 deg; wavevector (-7, 2) cycles
+        # over 256 m points at 164.05 deg, crests at 74.05 deg.
+        ridges = 3.0 + 2.0 * np.sin(2 * math.pi * (-7 * x + 2 * y) / 256.0)
+        # The same ridges turned to the fingering orientation (39.24 deg):
+        # wavevector (-6, 7) at 130.60 deg, crests at 40.60 deg.
+        wrong = 3.0 + 2.0 * np.sin(2 * math.pi * (-6 * x + 7 * y) / 256.0)
+        # Fingers at theta = 140, N = 3 (26.13 deg).
+        a = math.radians(M.fingering_orientation(M.two_winds(0, 140, 3)))
+        fingers = np.zeros_like(x)
+        for cx, cy in ((60.0, 60.0), (190.0, 80.0), (100.0, 200.0)):
+            dx, dy = M.wrap_delta(x - cx, 256), M.wrap_delta(y - cy, 256)
+            u, v = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
+            fingers += 4.0 * np.exp(-0.5 * ((u / 30.0) ** 2 + (v / 5.0) ** 2))
+        scenes = [
+            ("orientation_bed_120_2", [snap(flat, 0), snap(ridges, 400)], job("bed-ok", 120, 2)),
+            ("orientation_bed_120_2_b", [snap(flat, 0), snap(wrong, 400)], job("bed-wrong", 120, 2, "STOCHASTIC")),
+            ("orientation_finger_140_3", [snap(fingers, 0), snap(fingers, 400)], job("finger-ok", 140, 3)),
+        ]
+        with tempfile.TemporaryDirectory() as tmp:
+            rep = V.Report(Path(tmp))
+            V.orientation_law(rep, T, scenes)
+            self.assertTrue((Path(tmp) / "plots" / "orientation.png").exists())
+        text = "\n".join(rep.lines)
+        rows = {l.split(" | ")[0][2:]: l for l in text.splitlines() if l.startswith("| bed-") or l.startswith("| finger-")}
+        self.assertRegex(rows["bed-ok"], r"\| 73\.7 \| 39\.2 \| 7[34]\.\d \| 0\.\d \|.*\| PASS \|$")
+        self.assertRegex(rows["bed-wrong"], r"\| 73\.7 \| 39\.2 \| 40\.\d \| 33\.\d \|.*\| FAIL \|$")
+        self.assertRegex(rows["finger-ok"], r"\| 26\.1 \| 81\.1 \| 26\.\d \| 0\.\d \|.*\| PASS \|$")
+        verdicts = {name: ok for name, ok, _ in rep.summary}
+        self.assertEqual(verdicts, {
+            "Two-wind orientation, bed instability (EXPECTED)": True,
+            "Two-wind orientation, bed instability (STOCHASTIC)": False,
+            "Two-wind orientation, fingering (EXPECTED)": True})
 
 
 if __name__ == "__main__":
