@@ -744,6 +744,27 @@ def orientation_case(job):
     return primary, theta, n, M.two_winds(primary, theta, n)
 
 
+def describe_layers(job):
+    """The initial sand and its sources, in words, for the report."""
+    d = job["domain"]
+    sand = job["layers"]["sand"]
+    parts = [f"{d['nx']} x {d['ny']} cells of {d['cell_size_m']:g} m, {job['run']['steps']} steps, "
+             f"{job.get('transport', 'EXPECTED')} with slabs of {job.get('model', {}).get('slab_m', 0.1):g} m"]
+    if "constant" in sand:
+        u = sand.get("uniform", {})
+        parts.append(f"a bed of {sand['constant']:g} m of sand"
+                     + (f" plus {u.get('min', 0):g}-{u.get('max', 0):g} m of uniform random relief" if u else ""))
+    for p in sand.get("piles", []):
+        parts.append(f"a pile {p['height']:g} m high of {p['radius_m']:g} m radius at ({p['x_m']:g}, {p['y_m']:g}) m "
+                     "on bare rock")
+    feeds = [e for e in job.get("events", []) if "sand" in e]
+    if feeds:
+        b = feeds[0]["sand"]
+        parts.append(f"fed by {len(feeds)} disks of {b['height']:g} m of sand ({b['radius_m']:g} m radius) at the "
+                     f"pile from step {feeds[0]['step']} to {feeds[-1]['step']}")
+    return ", ".join(parts)
+
+
 def orientation_law(rep, T, scenes):
     """scenes: (scene file name, snapshots, job) of orientation_bed_* and
     orientation_finger_*: dunes under two alternating winds against the
@@ -762,8 +783,10 @@ def orientation_law(rep, T, scenes):
             "predict two orientations, with the crest flux sped up by 1 + gamma |sin(wind - crest)|, "
             f"gamma = {M.SPEED_UP_GAMMA:g} (Gao et al. 2015): in the **bed-instability** mode (a flat "
             "bed of sand with small random relief) the crests align where the gross crest-normal "
-            "transport is largest; in the **fingering** mode (a sand pile on bare rock) the dune "
+            "transport is largest; in the **fingering** mode (a sand source on bare rock) the dune "
             "elongates along the resultant flux at its crest (the crest-normal fluxes cancel). "
+            + "".join(sorted({f"Scene {j['name']}: {describe_layers(j)}. " for _, _, j in scenes}))
+            + 
             "Measured on the last snapshot: the crest orientation of the bed from the structure tensor "
             "of the height (the 2-D spectrum's strongest wavevector is listed too; on these domains its "
             "directions are harmonics several degrees apart), the elongation of the fingers from the "
@@ -830,7 +853,7 @@ def orientation_law(rep, T, scenes):
                        f"; {sum(not r['formed'] for r in rs)} without a pattern"))
     # Orientation against divergence: predictions for the scenes' flux ratios, measured points.
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.8))
-    th = np.linspace(90.0, 180.0, 91)
+    th = np.linspace(92.0, 180.0, 45)
     for ax, mode, title in ((axes[0], "bed", "bed instability: crest"),
                             (axes[1], "finger", "fingering: elongation")):
         rs = [r for r in rows if r["mode"] == mode]

@@ -359,7 +359,8 @@ TEST_P(Example, Runs) {
 }
 INSTANTIATE_TEST_SUITE_P(Examples, Example,
                          ::testing::Values("barchans", "transverse", "linear", "star", "nabkha",
-                                           "yardangs", "echo_dune", "vortex"));
+                                           "yardangs", "echo_dune", "vortex", "barchans_expected",
+                                           "transverse_expected", "linear_expected"));
 
 }  // namespace
 

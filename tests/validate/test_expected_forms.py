@@ -1,9 +1,10 @@
 # SPDX-License-Identifier: Apache-2.0
 """The deterministic (EXPECTED) twins of the dune examples form the dunes of
 their stochastic originals: a sand pile on bare bedrock becomes crescent
-barchans with slip faces and horns pointing downwind, and a flat sand bed
+barchans with slip faces and horns pointing downwind, a flat sand bed
 with 1 m of random relief grows transverse dunes with crests perpendicular
-to the wind. Both twins run [N24]'s expected transport with its slab
+to the wind, and sand patches under two winds 120 degrees apart grow linear
+dunes along their resultant. The twins run [N24]'s expected transport with its slab
 eps_S = 1 m (examples/*_expected.json); README "Expected or stochastic
 transport?" gives the measurements and the shape law that still fails."""
 import json
@@ -22,6 +23,7 @@ ERG = os.environ["ERG_BIN"]
 THRESHOLDS = json.loads((SOURCE / "client/validate/thresholds.json").read_text())
 DETECT = THRESHOLDS["detection"]
 REPOSE_DEG = 33.0  # model.repose_deg's default ([N24] 3.8)
+LINEAR_STEPS = 600
 
 
 def run_twin(name, out, steps, snapshot_every, **domain):
@@ -80,6 +82,33 @@ class ExpectedTransverse(unittest.TestCase):
         self.assertGreater(relief(last), 3.0 * relief(first))  # the bed is unstable: dunes grow
         self.assertGreater(o["coherence"], 0.5)  # parallel ridges, not blobs
         self.assertLessEqual(abs(angle - 90.0), 10.0)  # crests across the wind
+
+
+class ExpectedLinear(unittest.TestCase):
+    def test_patches_grow_linear_dunes_along_the_resultant(self):
+        # Two winds 120 deg apart with equal fluxes: both modes of Courrech du
+        # Pont, Narteau & Gao 2014 put the dunes along the resultant (theta >
+        # 90 deg, N = 1), the bisector of the two winds.
+        job = json.loads((SOURCE / "examples" / "linear_expected.json").read_text())
+        b = job["wind"]["bidirectional"]
+        winds = measure.two_winds(b["direction_deg"], b["angle_deg"], b["flux_ratio"])
+        expected = measure.fingering_orientation(winds) % 180.0
+        self.assertLess(measure.axis_difference(measure.bed_instability_orientation(winds), expected), 1e-6)
+        with tempfile.TemporaryDirectory() as tmp:
+            snaps = run_twin("linear_expected.json", Path(tmp), LINEAR_STEPS, LINEAR_STEPS // 2,
+                             nx=128, ny=128)
+        first, last = snaps[0], snaps[-1]
+        axis0, elong0 = measure.autocorrelation_axis(first["sand"], first["cell_size_m"])
+        axis, elong = measure.autocorrelation_axis(last["sand"], last["cell_size_m"])
+        diff = measure.axis_difference(axis, expected)
+        print(f"elongation {elong0:.2f} -> {elong:.2f} times as long as wide, axis {axis:.1f} deg "
+              f"(resultant {expected:.1f} deg, {diff:.1f} deg off)")
+        O = THRESHOLDS["orientation"]
+        self.assertLess(elong0, 1.2)  # the round patches have no axis
+        self.assertGreaterEqual(elong, O["min_elongation"])  # the dunes are elongated
+        self.assertLessEqual(diff, O["tolerance_deg"])  # along the resultant
+        totals = {s["sand_units_total"] + s["airborne_units_total"] for s in snaps}
+        self.assertEqual(len(totals), 1, totals)
 
 
 if __name__ == "__main__":
