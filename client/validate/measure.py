@@ -496,6 +496,21 @@ def axial_mean(angles_deg, weights):
     return mean, (math.hypot(c, s) / total if total > 0 else 0.0)
 
 
+def principal_axes(w, dx, dy):
+    """Weighted second moments of offsets (dx, dy) about their mean: the
+    major axis (degrees in [0, 180)) and the major and minor standard
+    deviations."""
+    w = np.asarray(w, dtype=np.float64)
+    w = w / w.sum()
+    dx = dx - float(np.sum(w * dx))
+    dy = dy - float(np.sum(w * dy))
+    sxx, syy, sxy = float(np.sum(w * dx * dx)), float(np.sum(w * dy * dy)), float(np.sum(w * dx * dy))
+    axis = (0.5 * math.degrees(math.atan2(2.0 * sxy, sxx - syy))) % 180.0
+    half = 0.5 * (sxx + syy)
+    disc = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy * sxy)
+    return axis, math.sqrt(half + disc), math.sqrt(max(half - disc, 0.0))
+
+
 def body_elongation(dune, sand, cell_size_m):
     """Elongation axis of one sand body (from dunes()): the major axis of the
     sand-weighted second moments of its cells about its centroid (positions
@@ -506,15 +521,7 @@ def body_elongation(dune, sand, cell_size_m):
     ix, iy = dune["ix"], dune["iy"]
     dx = wrap_delta(ix - dune["x_m"] / cell_size_m, nx) * cell_size_m
     dy = wrap_delta(iy - dune["y_m"] / cell_size_m, ny) * cell_size_m
-    w = sand[iy, ix]
-    w = w / w.sum()
-    mx, my = float(np.sum(w * dx)), float(np.sum(w * dy))
-    dx, dy = dx - mx, dy - my
-    sxx, syy, sxy = float(np.sum(w * dx * dx)), float(np.sum(w * dy * dy)), float(np.sum(w * dx * dy))
-    axis = (0.5 * math.degrees(math.atan2(2.0 * sxy, sxx - syy))) % 180.0
-    half = 0.5 * (sxx + syy)
-    disc = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy * sxy)
-    return axis, math.sqrt(half + disc), math.sqrt(max(half - disc, 0.0))
+    return principal_axes(sand[iy, ix], dx, dy)
 
 
 def elongation_orientation(sand, cell_size_m, threshold_m, min_cells, min_aspect=1.5):
@@ -570,13 +577,6 @@ def autocorrelation_axis(field, cell_size_m, level=0.5):
     labels, _ = ndimage.label(ac >= level)
     lobe = labels == labels[ny // 2, nx // 2]
     iy, ix = np.nonzero(lobe)
-    w = ac[iy, ix]
-    dx = (ix - nx // 2) * cell_size_m
-    dy = (iy - ny // 2) * cell_size_m
-    sxx, syy, sxy = (float(np.sum(w * dx * dx)), float(np.sum(w * dy * dy)),
-                     float(np.sum(w * dx * dy)))
-    axis = (0.5 * math.degrees(math.atan2(2.0 * sxy, sxx - syy))) % 180.0
-    half = 0.5 * (sxx + syy)
-    disc = math.sqrt(0.25 * (sxx - syy) ** 2 + sxy * sxy)
-    minor = math.sqrt(max(half - disc, 0.0))
-    return axis, (math.sqrt(half + disc) / minor if minor > 0 else float("inf"))
+    axis, major, minor = principal_axes(ac[iy, ix], (ix - nx // 2) * cell_size_m,
+                                        (iy - ny // 2) * cell_size_m)
+    return axis, (major / minor if minor > 0 else float("inf"))

@@ -373,8 +373,10 @@ class OrientationSection(unittest.TestCase):
         import validate as V
         T = json.loads(Path(os.path.dirname(M.__file__), "thresholds.json").read_text())
 
-        def job(name, theta, n, transport="EXPECTED"):
+        def job(name, theta, n, transport="EXPECTED", sand=None):
             return {"name": name, "transport": transport,
+                    "domain": {"nx": 256, "ny": 256, "cell_size_m": 1.0}, "run": {"steps": 400},
+                    "layers": {"sand": sand or {"constant": 2.5, "uniform": {"min": 0, "max": 1}}},
                     "wind": {"bidirectional": {"speed_mps": 5, "direction_deg": 0, "angle_deg": theta,
                                                "flux_ratio": n, "period_steps": 20}}}
 
@@ -400,13 +402,16 @@ class OrientationSection(unittest.TestCase):
         scenes = [
             ("orientation_bed_120_2", [snap(flat, 0), snap(ridges, 400)], job("bed-ok", 120, 2)),
             ("orientation_bed_120_2_b", [snap(flat, 0), snap(wrong, 400)], job("bed-wrong", 120, 2, "STOCHASTIC")),
-            ("orientation_finger_140_3", [snap(fingers, 0), snap(fingers, 400)], job("finger-ok", 140, 3)),
+            ("orientation_finger_140_3", [snap(fingers, 0), snap(fingers, 400)], job("finger-ok", 140, 3, sand={"piles": [
+                {"x_m": 60, "y_m": 60, "height": 4, "radius_m": 20}]})),
         ]
         with tempfile.TemporaryDirectory() as tmp:
             rep = V.Report(Path(tmp))
             V.orientation_law(rep, T, scenes)
             self.assertTrue((Path(tmp) / "plots" / "orientation.png").exists())
         text = "\n".join(rep.lines)
+        self.assertIn("Scene finger-ok: 256 x 256 cells of 1 m, 400 steps, EXPECTED with slabs of 0.1 m, "
+                      "a pile 4 m high of 20 m radius at (60, 60) m on bare rock.", text)
         rows = {l.split(" | ")[0][2:]: l for l in text.splitlines() if l.startswith("| bed-") or l.startswith("| finger-")}
         self.assertRegex(rows["bed-ok"], r"\| 73\.7 \| 39\.2 \| 7[34]\.\d \| 0\.\d \|.*\| PASS \|$")
         self.assertRegex(rows["bed-wrong"], r"\| 73\.7 \| 39\.2 \| 40\.\d \| 33\.\d \|.*\| FAIL \|$")
