@@ -790,7 +790,8 @@ def orientation_law(rep, T, scenes):
             "Measured on the last snapshot: the crest orientation of the bed from the structure tensor "
             "of the height (the 2-D spectrum's strongest wavevector is listed too; on these domains its "
             "directions are harmonics several degrees apart), the elongation of the fingers from the "
-            "central lobe of the sand thickness's periodic autocorrelation (above "
+            "central lobe of the periodic autocorrelation of the dunes' sand (thicker than "
+            f"{det['dune_sand_threshold_m']:g} m; lags above "
             f"{O['autocorrelation_level']:g} of its peak; the volume-weighted mean axis of the elongated "
             f"bodies thicker than {det['dune_sand_threshold_m']} m is listed too). An orientation is an "
             "axis (modulo 180 deg), in degrees counter-clockwise from x. The law holds when the measured "
@@ -820,11 +821,15 @@ def orientation_law(rep, T, scenes):
             also = f"spectrum {co['spectrum_deg']:.1f}"
         else:
             pred, other = finger_pred, bed_pred
-            measured, elong = M.autocorrelation_axis(last["sand"], cell, O["autocorrelation_level"])
-            formed = elong >= O["min_elongation"]
+            # The dunes: sand thicker than the detection threshold (the
+            # saltating sheet between them has streaks of its own).
+            thick = np.where(last["sand"] > det["dune_sand_threshold_m"], last["sand"], 0.0)
+            measured, elong = M.autocorrelation_axis(thick, cell, O["autocorrelation_level"])
             bodies = M.elongation_orientation(last["sand"], cell, det["dune_sand_threshold_m"],
                                               det["dune_min_cells"], O["min_elongation"])
-            pattern = f"lobe {elong:.2f} times as long as wide"
+            formed = elong >= O["min_elongation"] and bodies["bodies"] > 0
+            pattern = (f"lobe {elong:.2f} times as long as wide" if bodies["bodies"] else
+                       f"no dune: no body thicker than {det['dune_sand_threshold_m']:g} m")
             also = (f"bodies {bodies['axis_deg']:.1f} ({bodies['measured']} of {bodies['bodies']})"
                     if bodies["measured"] else f"bodies: none elongated ({bodies['bodies']} found)")
         diff = M.axis_difference(measured, pred)
