@@ -880,8 +880,12 @@ def orientation_law(rep, T, scenes):
         ax.legend(fontsize=6)
     rep.plot(fig, "orientation.png", "orientation against divergence")
     # The last heightfields with the predicted (dashed) and measured (solid) axes.
-    fig, axes = plt.subplots(1, len(rows), figsize=(2.2 * len(rows), 2.5), squeeze=False)
-    for ax, r in zip(axes[0], rows):
+    ncol = min(6, len(rows))
+    nrow = (len(rows) + ncol - 1) // ncol
+    fig, axes = plt.subplots(nrow, ncol, figsize=(2.2 * ncol, 2.5 * nrow), squeeze=False)
+    for ax in axes.ravel()[len(rows):]:
+        ax.axis("off")
+    for ax, r in zip(axes.ravel(), rows):
         n = r["height"].shape[0] * r["cell"]
         ax.imshow(r["height"], origin="lower", extent=(0, n, 0, n), cmap="terrain")
         for a, style in ((r["pred"], "w--"), (r["measured"], "r-")):
