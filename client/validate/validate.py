@@ -778,7 +778,9 @@ def orientation_law(rep, T, scenes):
     rep.add("## 10. Dune orientation under two winds", "")
     rep.add("Two winds of the same speed alternate (a bidirectional regime, every "
             f"{', '.join(sorted({str(j['wind']['bidirectional'].get('period_steps', 20)) for _, _, j in scenes}))} steps): "
-            "the primary along the grid's x axis, the secondary at the divergence angle theta, blowing "
+            "the primary towards "
+            + ", ".join(sorted({f"{orientation_case(j)[0]:g}" for _, _, j in scenes}, key=float))
+            + " deg from the grid's x axis, the secondary at the divergence angle theta from it, blowing "
             "1 / N of the time so that the flux ratio is N. Courrech du Pont, Narteau & Gao (2014) "
             "predict two orientations, with the crest flux sped up by 1 + gamma |sin(wind - crest)|, "
             f"gamma = {M.SPEED_UP_GAMMA:g} (Gao et al. 2015): in the **bed-instability** mode (a flat "
@@ -786,8 +788,7 @@ def orientation_law(rep, T, scenes):
             "transport is largest; in the **fingering** mode (a sand source on bare rock) the dune "
             "elongates along the resultant flux at its crest (the crest-normal fluxes cancel). "
             + "".join(sorted({f"Scene {j['name']}: {describe_layers(j)}. " for _, _, j in scenes}))
-            + 
-            "Measured on the last snapshot: the crest orientation of the bed from the structure tensor "
+            + "Measured on the last snapshot: the crest orientation of the bed from the structure tensor "
             "of the height (the 2-D spectrum's strongest wavevector is listed too; on these domains its "
             "directions are harmonics several degrees apart), the elongation of the fingers from the "
             "central lobe of the periodic autocorrelation of the dunes' sand (thicker than "
@@ -835,7 +836,7 @@ def orientation_law(rep, T, scenes):
         diff = M.axis_difference(measured, pred)
         ok = formed and diff <= tol
         row = {"name": job["name"], "mode": mode, "transport": job.get("transport", "EXPECTED"),
-               "theta": theta, "n": n, "pred": pred, "other": other, "measured": measured,
+               "theta": theta, "n": n, "primary": primary, "pred": pred, "other": other, "measured": measured,
                "diff": diff, "formed": formed, "ok": ok, "height": height, "cell": cell,
                "step": last["step"]}
         rows.append(row)
@@ -847,7 +848,7 @@ def orientation_law(rep, T, scenes):
         for transport in sorted({r["transport"] for r in rows if r["mode"] == mode}):
             rs = [r for r in rows if r["mode"] == mode and r["transport"] == transport]
             ok = all(r["ok"] for r in rs)
-            worst = max(r["diff"] for r in rs)
+            worst = max((r["diff"] for r in rs if r["diff"] == r["diff"]), default=float("nan"))
             rep.add(f"{title}, {transport}: {verdict(ok)}: differences "
                     + ", ".join(f"{r['diff']:.1f}" for r in rs) + f" deg (allowed {tol:g})"
                     + ("" if all(r["formed"] for r in rs) else
@@ -868,8 +869,8 @@ def orientation_law(rep, T, scenes):
             for r in rs:
                 if r["n"] != n:
                     continue
-                # The measured axis drawn on the prediction's side of the 180 deg wrap.
-                m = r["pred"] + M.wrap_delta(r["measured"] - r["pred"], 180.0)
+                # Relative to the primary wind, on the prediction's side of the 180 deg wrap.
+                m = (r["pred"] - r["primary"]) % 180.0 + M.wrap_delta(r["measured"] - r["pred"], 180.0)
                 ax.plot(r["theta"], m, "o" if r["transport"] == "STOCHASTIC" else "s",
                         mfc="none" if not r["formed"] else line.get_color(), color=line.get_color())
         ax.plot([], [], "ko", label="stochastic")
