@@ -48,7 +48,11 @@ inline StageResult stage_result(Simulation& sim) {
   r.state = sim.state();
   for (int i = 0; i < fields::kCount; ++i) {
     const auto id = static_cast<fields::Id>(i);
-    if (!fields::info(id).state) sim.backend().download_owned(id, r.derived[i]);
+    // A field whose storage the next stage that reads it writes over
+    // (fields::Storage::kReplaced: landed, reptation) holds its values only
+    // within its lifetime, and is judged by the field written over it.
+    if (!fields::info(id).state && fields::info(id).storage != fields::Storage::kReplaced)
+      sim.backend().download_owned(id, r.derived[i]);
   }
   return r;
 }

@@ -55,6 +55,23 @@ inline void check_owned_upload(fields::Id id, const std::vector<float>& in, cons
                                 " needs one value per owned cell");
 }
 
+// download_rows' and upload_rows' preconditions, the same on every backend:
+// rows within the tile; uploads to state fields only.
+inline void check_rows(fields::Id id, int y0, int y1, const TileGeom& g, bool upload) {
+  if (y0 < 0 || y1 > g.ny || y0 > y1)
+    throw std::invalid_argument(std::string(upload ? "upload_rows: " : "download_rows: ") +
+                                fields::info(id).name + " rows [" + std::to_string(y0) + ", " +
+                                std::to_string(y1) + ") are not within the tile's " +
+                                std::to_string(g.ny));
+  if (upload && !fields::info(id).state)
+    throw std::invalid_argument(std::string("upload_rows: ") + fields::info(id).name +
+                                " is not exact state");
+}
+// Bytes per value of a registry field as stored.
+inline std::size_t stored_bytes(fields::Id id) {
+  return fields::info(id).type == fields::Type::kUnits ? sizeof(units_t) : sizeof(float);
+}
+
 // What a step's sand avalanching did: the iterations that moved sand, and
 // whether it reached model.avalanche_iterations, the cap, with sand still
 // moving (the same on every tile).
@@ -83,6 +100,17 @@ class Backend {
   // For tests that hand two backends the same inputs at a stage boundary
   // (tests/common/stage_agreement.h); the ghosts are the next exchange's.
   virtual void upload_owned(fields::Id id, const std::vector<float>& in) = 0;
+  // Rows [y0, y1) of a registry field's owned cells, row-major [y1 - y0][nx],
+  // as stored (int64 units or float: `out` holds that many values of the
+  // field's type). Checkpoints and snapshots are written from these a band
+  // of rows at a time, so no copy of a whole field is ever made.
+  virtual void download_rows(fields::Id id, int y0, int y1, void* out) = 0;
+  // Sets rows [y0, y1) of a state field's owned cells, as download_rows
+  // gives them (initial layers and checkpoints are read in bands); once
+  // every state field is set, upload_done() derives what depends on them.
+  // The ghosts are the next exchange's.
+  virtual void upload_rows(fields::Id id, int y0, int y1, const void* in) = 0;
+  virtual void upload_done() = 0;
 
   // --- ghosts ---------------------------------------------------------------
   // Moves the ghosts of the listed fields through the exchange (a fill, the

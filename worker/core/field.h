@@ -34,17 +34,30 @@ class Field {
     swap(o);
     return *this;
   }
-  ~Field() { std::free(data_); }
+  ~Field() {
+    if (owned_) std::free(data_);
+  }
 
   void reset(const TileGeom& g, T fill = T{}) {
     geom_ = g;
     allocate(g.size());
     std::fill(data_, data_ + n_, fill);
   }
+  // Storage shared with other fields (a backend's work buffers, whose
+  // lifetimes do not overlap): g.size() values at `p`, which the caller
+  // keeps alive and which this field does not free. Nothing is filled.
+  void view(T* p, const TileGeom& g) {
+    if (owned_) std::free(data_);
+    data_ = p;
+    n_ = g.size();
+    geom_ = g;
+    owned_ = false;
+  }
   void swap(Field& o) noexcept {
     std::swap(data_, o.data_);
     std::swap(n_, o.n_);
     std::swap(geom_, o.geom_);
+    std::swap(owned_, o.owned_);
   }
 
   T* data() { return data_; }
@@ -58,9 +71,10 @@ class Field {
 
  private:
   void allocate(std::size_t n) {
-    if (n == n_ && data_) return;
-    std::free(data_);
+    if (n == n_ && data_ && owned_) return;
+    if (owned_) std::free(data_);
     data_ = nullptr;
+    owned_ = true;
     n_ = n;
     if (n == 0) return;
     std::size_t bytes = (n * sizeof(T) + 63) / 64 * 64;
@@ -70,6 +84,7 @@ class Field {
   T* data_ = nullptr;
   std::size_t n_ = 0;
   TileGeom geom_{};
+  bool owned_ = true;  // false: a view (see view())
 };
 
 // The owned cells of a field (no halo), row-major [ny][nx], each converted.

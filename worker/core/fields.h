@@ -45,6 +45,20 @@ struct Snapshot {
   bool optional = false;           // older snapshots may lack it (readers leave it empty)
 };
 
+// Whether a field has storage of its own on the CPU backend, or shares it
+// with others whose lifetimes within a step do not overlap (docs/design.md,
+// "Memory"; backend/cpu/cpu_backend.h says who shares what). Conserved
+// quantities are always integer units, shared or not.
+enum class Storage {
+  kOwn,         // its own buffer
+  kRecomputed,  // shares a work buffer; computed again when read after its
+                // storage was reused (wind, shadow: from the step's heights
+                // and wind; repose tangents: from vegetation)
+  kReplaced,    // the stage that reads it last writes another field over it,
+                // cell by cell (landed -> deposited_m, reptation -> tan_l);
+                // its values live from the stage that writes it to that one
+};
+
 struct Info {
   const char* name;  // the snapshot dataset, and the field's name everywhere
   Type type;
@@ -56,6 +70,8 @@ struct Info {
   Snapshot snapshot;
   Reach ghosts;   // who reads its ghosts
   float initial;  // the value before anything sets it (and of a missing optional dataset)
+  Storage storage = Storage::kOwn;  // on the CPU backend
+  const char* shares = "";          // what it shares storage with (kOwn: nothing)
 };
 
 enum Id : int {
@@ -114,7 +130,7 @@ inline constexpr std::array<Info, kCount> kFields = {{
      "vegetation",
      false,
      {3, "vegetation cover fraction", "vegetation_area_fraction"},
-     Reach::kNone,
+     Reach::kAvalanche,  // the CPU backend derives tan_l from it, ghosts included
      0},
     {"resistance", Type::kFloat, "1", true, "resistance", false, {}, Reach::kNone, 0},
     {"obstacles",
@@ -136,7 +152,9 @@ inline constexpr std::array<Info, kCount> kFields = {{
      false,
      {4, "surface wind, x (eastward) component", "eastward_wind"},
      Reach::kNone,
-     0},
+     0,
+     Storage::kRecomputed,
+     "reptation's new sand, avalanching's heights"},
     {"wind_y",
      Type::kFloat,
      "m s-1",
@@ -145,7 +163,9 @@ inline constexpr std::array<Info, kCount> kFields = {{
      false,
      {5, "surface wind, y (northward) component", "northward_wind"},
      Reach::kNone,
-     0},
+     0,
+     Storage::kRecomputed,
+     "reptation's new sand, avalanching's fractions"},
     {"shadow",
      Type::kFloat,
      "1",
@@ -154,16 +174,48 @@ inline constexpr std::array<Info, kCount> kFields = {{
      false,
      {7, "wind shadow of the upwind relief", "", true},
      Reach::kNone,
-     0},
+     0,
+     Storage::kRecomputed,
+     "reptation, tan_l"},
     // Echo-dune classification r_e (stages/echo_dunes.h); 0 when off.
     {"echo", Type::kFloat, "1", false, "", false, {}, Reach::kNone, 0},
     // Saltation's scatter target: airborne sand landing this step, ghosts
     // summed back onto their owners.
-    {"landed", Type::kUnits, "m", false, "", false, {}, Reach::kSaltation, 0},
+    {"landed",
+     Type::kUnits,
+     "m",
+     false,
+     "",
+     false,
+     {},
+     Reach::kSaltation,
+     0,
+     Storage::kReplaced,
+     "deposited_m"},
     // s_r, the impact strength that drives reptation [N24 3.6].
-    {"reptation", Type::kFloat, "m", false, "", false, {}, Reach::kReptation, 0},
+    {"reptation",
+     Type::kFloat,
+     "m",
+     false,
+     "",
+     false,
+     {},
+     Reach::kReptation,
+     0,
+     Storage::kReplaced,
+     "shadow, tan_l"},
     // tan(repose(v)) * l for sand (stages/vegetation.h).
-    {"tan_l", Type::kFloat, "m", false, "", false, {}, Reach::kAvalanche, 0},
+    {"tan_l",
+     Type::kFloat,
+     "m",
+     false,
+     "",
+     false,
+     {},
+     Reach::kAvalanche,
+     0,
+     Storage::kRecomputed,
+     "shadow, reptation"},
     // Sand that saltation deposited on the cell in the last step (landed and
     // stayed; stages/saltation.h Impact::deposited).
     {"deposited_m",
@@ -174,7 +226,9 @@ inline constexpr std::array<Info, kCount> kFields = {{
      false,
      {9, "sand deposited by saltation in the last step", "", true},
      Reach::kNone,
-     0},
+     0,
+     Storage::kOwn,
+     "landed (written over it at the impacts)"},
 }};
 
 constexpr const Info& info(Id id) {

@@ -106,14 +106,29 @@ void add_patches(const erg::v1::SandPatches& sp, std::uint64_t seed, const Domai
   // Buckets at least 2 r wide: a disk reaches only its bucket's neighbours.
   const int bx = std::max(1, static_cast<int>(d.lx / (2 * r)));
   const int by = std::max(1, static_cast<int>(d.ly / (2 * r)));
-  std::vector<std::vector<std::pair<double, double>>> buckets(static_cast<size_t>(bx) * by);
-  for (long k = 0; k < n; ++k) {
-    const Philox4 rr = random4(seed, 1, static_cast<std::uint64_t>(k), RandomStream::kPatches);
-    const double cx = u01d(rr.v[0], rr.v[1]) * d.lx, cy = u01d(rr.v[2], rr.v[3]) * d.ly;
-    const int ix = std::min(bx - 1, static_cast<int>(cx / d.lx * bx));
-    const int iy = std::min(by - 1, static_cast<int>(cy / d.ly * by));
-    buckets[static_cast<size_t>(iy) * bx + ix].emplace_back(cx, cy);
+  // The disks of the last call, kept: a tile is generated in bands
+  // (sim/simulation.h initial_rows), each of which needs the same disks.
+  struct Disks {
+    std::uint64_t seed = 0;
+    long n = -1;
+    int bx = 0, by = 0;
+    double lx = 0, ly = 0;
+    std::vector<std::vector<std::pair<double, double>>> buckets;
+  };
+  static thread_local Disks cache;
+  if (cache.seed != seed || cache.n != n || cache.bx != bx || cache.by != by || cache.lx != d.lx ||
+      cache.ly != d.ly) {
+    cache = Disks{seed, n, bx, by, d.lx, d.ly, {}};
+    cache.buckets.resize(static_cast<size_t>(bx) * by);
+    for (long k = 0; k < n; ++k) {
+      const Philox4 rr = random4(seed, 1, static_cast<std::uint64_t>(k), RandomStream::kPatches);
+      const double cx = u01d(rr.v[0], rr.v[1]) * d.lx, cy = u01d(rr.v[2], rr.v[3]) * d.ly;
+      const int ix = std::min(bx - 1, static_cast<int>(cx / d.lx * bx));
+      const int iy = std::min(by - 1, static_cast<int>(cy / d.ly * by));
+      cache.buckets[static_cast<size_t>(iy) * bx + ix].emplace_back(cx, cy);
+    }
   }
+  const auto& buckets = cache.buckets;
   const double inner = std::max(0.0, r - sp.falloff_m());
   for (int y = 0; y < t.ny; ++y)
     for (int x = 0; x < t.nx; ++x) {

@@ -12,6 +12,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -245,6 +246,34 @@ struct TileSlab {
   int x0 = 0, y0 = 0;  // first owned cell, global coordinates
   int nx = 0, ny = 0;  // owned cells
 };
+// The writers and readers move a tile a band of rows at a time, never a
+// whole field: a band is the height of a chunk, band_rows(chunk_ny) (the
+// largest divisor of the chunk height that is at most kBandRows), so every
+// collective write covers whole chunks of one rank.
+inline constexpr int kBandRows = 64;
+int band_rows(int chunk_ny);
+// Rows [y0, y1) of the tile's owned cells of field `id` (tile-local rows),
+// row-major [y1 - y0][slab.nx], into `out`: float metres for a snapshot
+// layer, the stored type (int64 units or float) for a checkpoint field.
+using TileRows = std::function<void(fields::Id id, int y0, int y1, void* out)>;
+// The same, handed to the caller as they are read.
+using TileRowsIn = std::function<void(fields::Id id, int y0, int y1, const void* in)>;
+// Snapshot layers `layers` (registry fields in snapshot order, the same on
+// every rank) drawn band by band from `rows`.
+void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const SnapshotMeta& meta,
+                             const std::vector<fields::Id>& layers, const TileRows& rows,
+                             const TileSlab& slab, int chunk_nx, int chunk_ny);
+// Every state field drawn band by band from `rows`; `header` gives step,
+// grid, spec and ledger (its arrays are not read).
+void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Checkpoint& header,
+                               const TileRows& rows, const TileSlab& slab, int chunk_nx,
+                               int chunk_ny);
+// Reads the header, then hands `start(header)`'s sink every state field the
+// file has, band by band (the slab's cells), and verifies the checksums once
+// all are read (an IoError after the sink saw corrupt bands: discard them).
+// Returns the header (arrays empty). Collective.
+Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, const TileSlab& slab,
+                                    const std::function<TileRowsIn(const Checkpoint&)>& start);
 void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const SnapshotMeta& meta,
                              const SnapshotFields& tile_fields, const TileSlab& slab, int chunk_nx,
                              int chunk_ny);

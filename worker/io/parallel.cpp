@@ -269,19 +269,19 @@ Hid collective_dxpl(const std::string& path) {
   return dxpl;
 }
 
-// The selections of one rank's slab: in the file, the hyperslab at (y0, x0)
-// of [ny][nx], or of [1][ny][nx] for a snapshot layer; in memory, the
-// contiguous tile, or the layer's strided values (formats.h). An empty slab
-// selects nothing on both sides (the rank still joins the collective call).
+// The selections of rows [y0, y1) of one rank's slab: in the file, the
+// hyperslab at (slab.y0 + y0, slab.x0) of [ny][nx], or of [1][ny][nx] for a
+// snapshot layer; in memory, the contiguous band. An empty band selects
+// nothing on both sides (the rank still joins the collective call).
 struct SlabSelection {
   Hid file_space, mem_space;
 };
 
-SlabSelection select_slab(hid_t dset, const TileSlab& s, const detail::SnapshotLayer* layer,
+SlabSelection select_band(hid_t dset, const TileSlab& s, int y0, int y1, bool layer,
                           const std::string& path, const std::string& what) {
   SlabSelection sel;
   sel.file_space = detail::checked(H5Dget_space(dset), H5Sclose, path, "dataspace of " + what);
-  if (slab_empty(s)) {
+  if (slab_empty(s) || y1 <= y0) {
     const hsize_t one = 1;
     sel.mem_space = detail::checked(H5Screate_simple(1, &one, nullptr), H5Sclose, path,
                                     "memory dataspace for " + what);
@@ -289,23 +289,33 @@ SlabSelection select_slab(hid_t dset, const TileSlab& s, const detail::SnapshotL
     detail::check(H5Sselect_none(sel.mem_space.get()), path, "H5Sselect_none");
     return sel;
   }
-  std::vector<hsize_t> start = {static_cast<hsize_t>(s.y0), static_cast<hsize_t>(s.x0)};
-  std::vector<hsize_t> count = {static_cast<hsize_t>(s.ny), static_cast<hsize_t>(s.nx)};
+  std::vector<hsize_t> start = {static_cast<hsize_t>(s.y0 + y0), static_cast<hsize_t>(s.x0)};
+  std::vector<hsize_t> count = {static_cast<hsize_t>(y1 - y0), static_cast<hsize_t>(s.nx)};
   if (layer) {
     start.insert(start.begin(), 0);
     count.insert(count.begin(), 1);
   }
+  const TileSlab band{s.x0, s.y0 + y0, s.nx, y1 - y0};
   detail::check(H5Sselect_hyperslab(sel.file_space.get(), H5S_SELECT_SET, start.data(), nullptr,
                                     count.data(), nullptr),
-                path, "cannot select tile " + slab_text(s) + " of " + what);
-  if (layer) {
-    sel.mem_space = detail::layer_memory_space(*layer, slab_cells(s), path);
-    return sel;
-  }
-  sel.mem_space =
-      detail::checked(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr),
-                      H5Sclose, path, "memory dataspace for " + what);
+                path, "cannot select rows " + slab_text(band) + " of " + what);
+  const hsize_t n = static_cast<hsize_t>(slab_cells(band));
+  sel.mem_space = detail::checked(H5Screate_simple(1, &n, nullptr), H5Sclose, path,
+                                  "memory dataspace for " + what);
   return sel;
+}
+
+// The bands of every rank's slab: `band` rows each; the number of
+// collective calls is the most any rank needs (the others join with empty
+// selections). Collective.
+struct Bands {
+  int band = 1, count = 0;
+};
+Bands slab_bands(MPI_Comm comm, const TileSlab& slab, int band) {
+  Bands b{std::max(1, band), 0};
+  int mine = slab_empty(slab) ? 0 : (slab.ny + b.band - 1) / b.band;
+  MPI_Allreduce(&mine, &b.count, 1, MPI_INT, MPI_MAX, comm);
+  return b;
 }
 
 // Everything the dataset writes of one file share.
@@ -317,16 +327,19 @@ struct TileWriter {
   const TileSlab& slab;
   int nx, ny;              // global
   int chunk_nx, chunk_ny;  // requested; clamped to the grid
+  Bands bands;             // chunk rows: band_rows(chunk_ny)
 
-  // Creates /<name> ([ny][nx], or [1][ny][nx] for a snapshot `layer`)
-  // chunked by tile and writes this rank's slab from `data` (the tile,
-  // row-major; a layer's values strided as it says), collectively. Each step
-  // is agreed on before the next.
-  void write(const char* name, hid_t file_type, hid_t mem_type, const void* data, int deflate_level,
-             const detail::SnapshotLayer* layer = nullptr) {
+  // Creates /<name> ([ny][nx], or [1][ny][nx] for a snapshot `layer`),
+  // chunked by tile width and band, and writes this rank's slab band by band:
+  // fill(y0, y1, out) puts rows [y0, y1) of the slab, `element` bytes a value,
+  // into out; done(y0, y1, out) sees them once written. Collectively; each
+  // step is agreed on before the next. One band of the slab in memory.
+  template <class Fill, class Done>
+  void write(const char* name, hid_t file_type, hid_t mem_type, std::size_t element, Fill&& fill,
+             Done&& done, int deflate_level, bool layer) {
     const std::string what = std::string("dataset '") + name + "'";
     std::vector<hsize_t> dims = {static_cast<hsize_t>(ny), static_cast<hsize_t>(nx)};
-    std::vector<hsize_t> chunk = {static_cast<hsize_t>(std::min(chunk_ny, ny)),
+    std::vector<hsize_t> chunk = {static_cast<hsize_t>(bands.band),
                                   static_cast<hsize_t>(std::min(chunk_nx, nx))};
     if (layer) {
       dims.insert(dims.begin(), 1);
@@ -343,16 +356,23 @@ struct TileWriter {
           H5Dclose, path, "cannot create " + what);
     });
     co.agree();
-    co.run([&] {
-      SlabSelection sel = select_slab(dset.get(), slab, layer, path, what);
-      // HDF5 wants a buffer even when nothing is selected.
-      static const double kNothing = 0;
-      const void* buf = data ? data : &kNothing;
-      detail::check(
-          H5Dwrite(dset.get(), mem_type, sel.mem_space.get(), sel.file_space.get(), dxpl, buf),
-          path, "cannot write " + what);
-    });
-    co.agree();
+    std::vector<char> buf;
+    for (int k = 0; k < bands.count; ++k) {
+      const int y0 = std::min(k * bands.band, slab.ny);
+      const int y1 = slab_empty(slab) ? y0 : std::min(y0 + bands.band, slab.ny);
+      co.run([&] {
+        buf.resize(
+            std::max<std::size_t>(element, element * static_cast<std::size_t>(y1 - y0) *
+                                               static_cast<std::size_t>(std::max(slab.nx, 0))));
+        if (y1 > y0) fill(y0, y1, buf.data());
+        SlabSelection sel = select_band(dset.get(), slab, y0, y1, layer, path, what);
+        detail::check(H5Dwrite(dset.get(), mem_type, sel.mem_space.get(), sel.file_space.get(),
+                               dxpl, buf.data()),
+                      path, "cannot write " + what);
+        if (y1 > y0) done(y0, y1, buf.data());
+      });
+      co.agree();
+    }
     co.run([&] { detail::close_checked(dset, path, "cannot close " + what); });
     co.agree();
   }
@@ -460,50 +480,53 @@ void write_atomically(Collective& co, const std::string& path, hid_t fcpl, std::
 
 }  // namespace
 
-void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const SnapshotMeta& meta,
-                             const SnapshotFields& f, const TileSlab& slab, int chunk_nx,
-                             int chunk_ny) {
-  Collective co(comm, path);
-  // Arguments first, before anything touches the disk: this rank's own...
+int band_rows(int chunk_ny) {
+  for (int b = std::min(chunk_ny, kBandRows); b > 1; --b)
+    if (chunk_ny % b == 0) return b;
+  return 1;
+}
+
+namespace {
+
+// What both snapshot writers check and agree on before writing: this rank's
+// arguments, then the values every rank must pass alike, then the tiling.
+void agree_on_snapshot(Collective& co, const std::string& path, const SnapshotMeta& meta,
+                       const TileSlab& slab, int chunk_nx, int chunk_ny,
+                       const std::string& layers) {
   co.run([&] {
     detail::check_grid(path, meta.nx, meta.ny);
     check_chunk(path, chunk_nx, chunk_ny, meta.nx, meta.ny);
-    if (!slab_empty(slab)) detail::check_required_layers(path, f, " on tile " + slab_text(slab));
   });
   co.agree();
-  // ... then what the ranks must agree on.
-  {
-    SameOnAllRanks same;
-    same.add("nx", std::int64_t{meta.nx});
-    same.add("ny", std::int64_t{meta.ny});
-    same.add("chunk_nx", std::int64_t{chunk_nx});
-    same.add("chunk_ny", std::int64_t{chunk_ny});
-    same.add("step", meta.step);
-    same.add("time_days", meta.time_days);
-    same.add("cell_size_m", meta.cell_size_m);
-    same.add("job_spec", meta.job_spec_json);
-    same.add("erg_version", meta.erg_version);
-    same.add("unit_m", meta.unit_m);
-    same.add("sand_units_total", meta.sand_units_total);
-    same.add("bedrock_units_total", meta.bedrock_units_total);
-    same.add("airborne_units_total", meta.airborne_units_total);
-    same.add("seed", meta.seed);
-    same.add("backend", meta.backend);
-    same.check(co, path);
-  }
+  SameOnAllRanks same;
+  same.add("nx", std::int64_t{meta.nx});
+  same.add("ny", std::int64_t{meta.ny});
+  same.add("chunk_nx", std::int64_t{chunk_nx});
+  same.add("chunk_ny", std::int64_t{chunk_ny});
+  same.add("step", meta.step);
+  same.add("time_days", meta.time_days);
+  same.add("cell_size_m", meta.cell_size_m);
+  same.add("job_spec", meta.job_spec_json);
+  same.add("erg_version", meta.erg_version);
+  same.add("unit_m", meta.unit_m);
+  same.add("sand_units_total", meta.sand_units_total);
+  same.add("bedrock_units_total", meta.bedrock_units_total);
+  same.add("airborne_units_total", meta.airborne_units_total);
+  same.add("seed", meta.seed);
+  same.add("backend", meta.backend);
+  same.add("layers", layers);
+  same.check(co, path);
   check_tiling(co, path, slab, meta.nx, meta.ny);
-  // A layer is written when every rank that owns cells has it.
-  std::array<int, fields::kCount> have{};
-  for (const fields::Id id : fields::snapshot_order())
-    have[id] = f[id].data || slab_empty(slab) ? 1 : 0;
-  MPI_Allreduce(MPI_IN_PLACE, have.data(), fields::kCount, MPI_INT, MPI_LAND, comm);
-  std::vector<fields::Id> ids;
-  for (const fields::Id id : fields::snapshot_order())
-    if (have[id]) ids.push_back(id);
+}
 
+// The snapshot layers `ids`, each band from rows(id, y0, y1, out) as float
+// metres. Collective; the arguments are agreed on.
+void write_snapshot_bands(Collective& co, const std::string& path, const SnapshotMeta& meta,
+                          const std::vector<fields::Id>& ids, const TileRows& rows,
+                          const TileSlab& slab, int chunk_nx, int chunk_ny) {
   SizeBound bound;
   for (std::size_t k = 0; k < ids.size(); ++k) {
-    bound.add_dataset(meta.nx, meta.ny, 1, sizeof(float), chunk_nx, chunk_ny);
+    bound.add_dataset(meta.nx, meta.ny, 1, sizeof(float), chunk_nx, band_rows(chunk_ny));
   }
   // The CF coordinates and metadata (cf.h): a few KiB per layer at most.
   bound.bytes +=
@@ -514,18 +537,23 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
         &meta.airborne_units_total, &meta.backend}) {
     bound.add_text(*s);
   }
+  const Bands bands =
+      slab_bands(co.comm(), slab, band_rows(std::min(chunk_ny, std::max(meta.ny, 1))));
 
   detail::Hdf5Guard guard;
   write_atomically(co, path, H5P_DEFAULT, bound.bytes, [&](hid_t file) {
     Hid dxpl;
     co.run([&] { dxpl = collective_dxpl(path); });
     co.agree();
-    TileWriter w{co, file, dxpl.get(), path, slab, meta.nx, meta.ny, chunk_nx, chunk_ny};
-    // The optional layers as agreed above (a rank without cells may pass null).
+    TileWriter w{co, file, dxpl.get(), path, slab, meta.nx, meta.ny, chunk_nx, chunk_ny, bands};
     std::vector<std::string> names;
-    for (const detail::SnapshotLayer& l : detail::snapshot_layers(f, ids)) {
-      w.write(l.name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, l.data, detail::kSnapshotDeflate, &l);
-      names.emplace_back(l.name);
+    for (const fields::Id id : ids) {
+      const char* name = fields::info(id).name;
+      w.write(
+          name, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, sizeof(float),
+          [&](int y0, int y1, void* out) { rows(id, y0, y1, out); }, [](int, int, const void*) {},
+          detail::kSnapshotDeflate, true);
+      names.emplace_back(name);
     }
     co.run([&] { detail::write_snapshot_attrs(file, meta, path); });
     co.agree();
@@ -535,42 +563,166 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
   });
 }
 
-void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Checkpoint& c,
-                               const TileSlab& slab, int chunk_nx, int chunk_ny) {
+std::string ids_text(const std::vector<fields::Id>& ids) {
+  std::string t;
+  for (const fields::Id id : ids) t += std::string(fields::info(id).name) + ",";
+  return t;
+}
+
+}  // namespace
+
+void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const SnapshotMeta& meta,
+                             const SnapshotFields& f, const TileSlab& slab, int chunk_nx,
+                             int chunk_ny) {
   Collective co(comm, path);
   co.run([&] {
-    if (c.nx <= 0 || c.ny <= 0) {
-      fail(path, "invalid grid " + std::to_string(c.nx) + " x " + std::to_string(c.ny) +
-                     " (nx and ny must be positive)");
-    }
-    check_chunk(path, chunk_nx, chunk_ny, c.nx, c.ny);
-    if (slab.nx >= 0 && slab.ny >= 0)
-      detail::check_checkpoint_sizes(c, slab_cells(slab), path, "the tile's nx * ny",
-                                     " (tile " + slab_text(slab) + ")");
-    detail::check_checkpoint_ledger(c, path);
+    if (!slab_empty(slab)) detail::check_required_layers(path, f, " on tile " + slab_text(slab));
   });
   co.agree();
-  {
-    SameOnAllRanks same;
-    same.add("nx", std::int64_t{c.nx});
-    same.add("ny", std::int64_t{c.ny});
-    same.add("chunk_nx", std::int64_t{chunk_nx});
-    same.add("chunk_ny", std::int64_t{chunk_ny});
-    same.add("step", c.step);
-    same.add("job_spec", c.job_spec_json);
-    same.add("ledger size", static_cast<std::int64_t>(c.ledger.size()));
-    for (const auto& [name, value] : c.ledger) {
-      same.add("ledger name", name);
-      same.add("ledger_" + name, value);
-    }
-    same.check(co, path);
-  }
-  check_tiling(co, path, slab, c.nx, c.ny);
+  // A layer is written when every rank that owns cells has it.
+  std::array<int, fields::kCount> have{};
+  for (const fields::Id id : fields::snapshot_order())
+    have[id] = f[id].data || slab_empty(slab) ? 1 : 0;
+  MPI_Allreduce(MPI_IN_PLACE, have.data(), fields::kCount, MPI_INT, MPI_LAND, comm);
+  std::vector<fields::Id> ids;
+  for (const fields::Id id : fields::snapshot_order())
+    if (have[id]) ids.push_back(id);
+  agree_on_snapshot(co, path, meta, slab, chunk_nx, chunk_ny, ids_text(ids));
+  // The values strided as each layer says (io.h LayerValues).
+  const TileRows rows = [&](fields::Id id, int y0, int y1, void* out) {
+    const LayerValues& l = f[id];
+    float* o = static_cast<float*>(out);
+    const std::size_t c0 = static_cast<std::size_t>(y0) * static_cast<std::size_t>(slab.nx);
+    const std::size_t n = static_cast<std::size_t>(y1 - y0) * static_cast<std::size_t>(slab.nx);
+    for (std::size_t c = 0; c < n; ++c)
+      o[c] = l.data[static_cast<std::size_t>(l.stride) * (c0 + c) +
+                    static_cast<std::size_t>(l.offset)];
+  };
+  write_snapshot_bands(co, path, meta, ids, rows, slab, chunk_nx, chunk_ny);
+}
 
+void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const SnapshotMeta& meta,
+                             const std::vector<fields::Id>& layers, const TileRows& rows,
+                             const TileSlab& slab, int chunk_nx, int chunk_ny) {
+  Collective co(comm, path);
+  co.run([&] {
+    std::string missing;
+    for (const fields::Id id : fields::snapshot_order())
+      if (!fields::info(id).snapshot.optional &&
+          std::find(layers.begin(), layers.end(), id) == layers.end())
+        missing += std::string(missing.empty() ? "" : ", ") + fields::info(id).name;
+    if (!missing.empty()) fail(path, "snapshot needs the layers " + missing);
+  });
+  co.agree();
+  agree_on_snapshot(co, path, meta, slab, chunk_nx, chunk_ny, ids_text(layers));
+  write_snapshot_bands(co, path, meta, layers, rows, slab, chunk_nx, chunk_ny);
+}
+
+namespace {
+
+// The checkpoint's header checks and agreement (both writers).
+void agree_on_checkpoint(Collective& co, const std::string& path, const Checkpoint& c,
+                         const TileSlab& slab, int chunk_nx, int chunk_ny) {
+  SameOnAllRanks same;
+  same.add("nx", std::int64_t{c.nx});
+  same.add("ny", std::int64_t{c.ny});
+  same.add("chunk_nx", std::int64_t{chunk_nx});
+  same.add("chunk_ny", std::int64_t{chunk_ny});
+  same.add("step", c.step);
+  same.add("job_spec", c.job_spec_json);
+  same.add("ledger size", static_cast<std::int64_t>(c.ledger.size()));
+  for (const auto& [name, value] : c.ledger) {
+    same.add("ledger name", name);
+    same.add("ledger_" + name, value);
+  }
+  same.check(co, path);
+  check_tiling(co, path, slab, c.nx, c.ny);
+}
+
+void check_checkpoint_header(const std::string& path, const Checkpoint& c, int chunk_nx,
+                             int chunk_ny) {
+  if (c.nx <= 0 || c.ny <= 0) {
+    fail(path, "invalid grid " + std::to_string(c.nx) + " x " + std::to_string(c.ny) +
+                   " (nx and ny must be positive)");
+  }
+  check_chunk(path, chunk_nx, chunk_ny, c.nx, c.ny);
+  detail::check_checkpoint_ledger(c, path);
+}
+
+// The present state fields of `c`'s header, each band from rows(id, y0, y1,
+// out) in its stored type; the checksums summed band by band. Collective.
+void write_checkpoint_bands(Collective& co, const std::string& path, const Checkpoint& c,
+                            const std::array<bool, fields::kCount>& present, const TileRows& rows,
+                            const TileSlab& slab, int chunk_nx, int chunk_ny) {
   detail::Hdf5Guard guard;
   Hid fcpl;
   co.run([&] { fcpl = detail::checkpoint_fcpl(path); });
   co.agree();
+  SizeBound bound;
+  for (int i = 0; i < fields::kCount; ++i) {
+    const auto id = static_cast<fields::Id>(i);
+    if (present[id])
+      bound.add_dataset(c.nx, c.ny, 1, fields::info(id).type == fields::Type::kUnits ? 8 : 4,
+                        chunk_nx, band_rows(chunk_ny));
+  }
+  bound.add_text(c.job_spec_json);
+  for (const auto& [name, value] : c.ledger) bound.add_text(name + value);
+  bound.add_text(std::string(512, ' '));  // the checksums record
+  const Bands bands = slab_bands(co.comm(), slab, band_rows(std::min(chunk_ny, c.ny)));
+
+  write_atomically(co, path, fcpl.get(), bound.bytes, [&](hid_t file) {
+    Hid dxpl;
+    co.run([&] { dxpl = collective_dxpl(path); });
+    co.agree();
+    TileWriter w{co, file, dxpl.get(), path, slab, c.nx, c.ny, chunk_nx, chunk_ny, bands};
+    // Each rank sums its tile band by band; the sums of all ranks are the
+    // file's (integrity.h). Every name is entered first, in field order, on
+    // every rank (a rank without cells sums nothing).
+    detail::Checksums sums;
+    for (int i = 0; i < fields::kCount; ++i) {
+      const auto id = static_cast<fields::Id>(i);
+      const fields::Info& f = fields::info(id);
+      if (!present[id]) continue;
+      const bool units = f.type == fields::Type::kUnits;
+      sums.add_cells(f.checkpoint, static_cast<const std::int64_t*>(nullptr), TileSlab{}, c.nx);
+      const auto fill = [&](int y0, int y1, void* out) { rows(id, y0, y1, out); };
+      const auto done = [&](int y0, int y1, const void* v) {
+        const TileSlab band{slab.x0, slab.y0 + y0, slab.nx, y1 - y0};
+        if (units)
+          sums.add_cells(f.checkpoint, static_cast<const std::int64_t*>(v), band, c.nx);
+        else
+          sums.add_cells(f.checkpoint, static_cast<const float*>(v), band, c.nx);
+      };
+      if (units)
+        w.write(f.checkpoint, H5T_STD_I64LE, H5T_NATIVE_INT64, sizeof(std::int64_t), fill, done,
+                detail::kCheckpointDeflate, false);
+      else
+        w.write(f.checkpoint, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, sizeof(float), fill, done,
+                detail::kCheckpointDeflate, false);
+    }
+    sums.allreduce(co.comm());
+    sums = detail::checkpoint_checksums_done(std::move(sums), c);
+    co.run([&] {
+      detail::write_checkpoint_attrs(file, c, path);
+      detail::write_checkpoint_checksums(file, sums, path);  // last
+    });
+    co.agree();
+  });
+}
+
+}  // namespace
+
+void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Checkpoint& c,
+                               const TileSlab& slab, int chunk_nx, int chunk_ny) {
+  Collective co(comm, path);
+  co.run([&] {
+    check_checkpoint_header(path, c, chunk_nx, chunk_ny);
+    if (slab.nx >= 0 && slab.ny >= 0)
+      detail::check_checkpoint_sizes(c, slab_cells(slab), path, "the tile's nx * ny",
+                                     " (tile " + slab_text(slab) + ")");
+  });
+  co.agree();
+  agree_on_checkpoint(co, path, c, slab, chunk_nx, chunk_ny);
   // An optional field is written when every rank that owns cells has it.
   std::array<int, fields::kCount> have{};
   for (int i = 0; i < fields::kCount; ++i) {
@@ -583,45 +735,33 @@ void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Che
   MPI_Allreduce(MPI_IN_PLACE, have.data(), fields::kCount, MPI_INT, MPI_LAND, comm);
   std::array<bool, fields::kCount> present{};
   for (int i = 0; i < fields::kCount; ++i) present[static_cast<std::size_t>(i)] = have[i] != 0;
-  SizeBound bound;
-  for (int i = 0; i < fields::kCount; ++i) {
-    const auto id = static_cast<fields::Id>(i);
-    if (present[id])
-      bound.add_dataset(c.nx, c.ny, 1, fields::info(id).type == fields::Type::kUnits ? 8 : 4,
-                        chunk_nx, chunk_ny);
-  }
-  bound.add_text(c.job_spec_json);
-  for (const auto& [name, value] : c.ledger) bound.add_text(name + value);
-  bound.add_text(std::string(512, ' '));  // the checksums record
-
-  write_atomically(co, path, fcpl.get(), bound.bytes, [&](hid_t file) {
-    Hid dxpl;
-    co.run([&] { dxpl = collective_dxpl(path); });
-    co.agree();
-    TileWriter w{co, file, dxpl.get(), path, slab, c.nx, c.ny, chunk_nx, chunk_ny};
-    for (int i = 0; i < fields::kCount; ++i) {
-      const auto id = static_cast<fields::Id>(i);
-      if (!present[id]) continue;
-      if (fields::info(id).type == fields::Type::kUnits)
-        w.write(fields::info(id).checkpoint, H5T_STD_I64LE, H5T_NATIVE_INT64, c.units[id].data(),
-                detail::kCheckpointDeflate);
-      else
-        w.write(fields::info(id).checkpoint, H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, c.reals[id].data(),
-                detail::kCheckpointDeflate);
-    }
-    // Each rank sums its tile; the sums of all ranks are the file's (integrity.h).
-    detail::Checksums sums = detail::checkpoint_cell_checksums(c, slab, present);
-    sums.allreduce(co.comm());
-    sums = detail::checkpoint_checksums_done(std::move(sums), c);
-    co.run([&] {
-      detail::write_checkpoint_attrs(file, c, path);
-      detail::write_checkpoint_checksums(file, sums, path);  // last
-    });
-    co.agree();
-  });
+  const TileRows rows = [&](fields::Id id, int y0, int y1, void* out) {
+    const std::size_t e = fields::info(id).type == fields::Type::kUnits ? 8 : 4;
+    const std::size_t row = e * static_cast<std::size_t>(slab.nx);
+    const char* from = fields::info(id).type == fields::Type::kUnits
+                           ? reinterpret_cast<const char*>(c.units[id].data())
+                           : reinterpret_cast<const char*>(c.reals[id].data());
+    std::memcpy(out, from + row * static_cast<std::size_t>(y0),
+                row * static_cast<std::size_t>(y1 - y0));
+  };
+  write_checkpoint_bands(co, path, c, present, rows, slab, chunk_nx, chunk_ny);
 }
 
-Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, const TileSlab& slab) {
+void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Checkpoint& header,
+                               const TileRows& rows, const TileSlab& slab, int chunk_nx,
+                               int chunk_ny) {
+  Collective co(comm, path);
+  co.run([&] { check_checkpoint_header(path, header, chunk_nx, chunk_ny); });
+  co.agree();
+  agree_on_checkpoint(co, path, header, slab, chunk_nx, chunk_ny);
+  std::array<bool, fields::kCount> present{};
+  for (int i = 0; i < fields::kCount; ++i)
+    present[static_cast<std::size_t>(i)] = fields::is_state(static_cast<fields::Id>(i));
+  write_checkpoint_bands(co, path, header, present, rows, slab, chunk_nx, chunk_ny);
+}
+
+Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, const TileSlab& slab,
+                                    const std::function<TileRowsIn(const Checkpoint&)>& start) {
   Collective co(comm, path);
   detail::Hdf5Guard guard;
   // The plain checks (exists, regular file, HDF5 signature) on one rank.
@@ -643,44 +783,74 @@ Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, cons
   co.run([&] {
     c = detail::read_checkpoint_header(fid, path);
     check_slab(path, slab, c.nx, c.ny);
+    detail::read_checkpoint_ledger(fid, path, c);
   });
   co.agree();
+  // Not a recorded failure: what start throws (a grid the tiling cannot
+  // take: every rank alike) is the caller's to handle.
+  const TileRowsIn sink = start(c);
 
   Hid dxpl;
   co.run([&] { dxpl = collective_dxpl(path); });
   co.agree();
   // Every dataset must be exactly [ny][nx], as in read_checkpoint.
   const std::vector<hsize_t> grid = {static_cast<hsize_t>(c.ny), static_cast<hsize_t>(c.nx)};
-  auto read = [&](const char* name, hid_t mem_type, auto& values) {
+  detail::Checksums sums;
+  std::vector<char> buf;
+  // (The same file on every rank: every rank gets the same answer.)
+  std::array<bool, fields::kCount> present{};
+  for (int i = 0; i < fields::kCount; ++i) {
+    const auto id = static_cast<fields::Id>(i);
+    const fields::Info& f = fields::info(id);
+    if (!f.state || (f.checkpoint_optional && !detail::link_exists(fid, f.checkpoint))) continue;
+    present[id] = true;
+    const bool units = f.type == fields::Type::kUnits;
+    const std::size_t e = units ? sizeof(std::int64_t) : sizeof(float);
+    const std::string what = std::string("dataset '") + f.checkpoint + "'";
+    Hid dset;
+    int band = kBandRows;
     co.run([&] {
       std::vector<hsize_t> dims;
-      Hid dset = detail::open_dataset(fid, name, dims, path);
+      dset = detail::open_dataset(fid, f.checkpoint, dims, path);
       if (dims != grid) {
-        fail(path, std::string("dataset '") + name + "' has shape " + detail::shape_text(dims) +
-                       ", expected " + detail::shape_text(grid));
+        fail(path, what + " has shape " + detail::shape_text(dims) + ", expected " +
+                       detail::shape_text(grid));
       }
-      values.resize(slab_empty(slab) ? 0 : slab_cells(slab));
-      const std::string what = std::string("dataset '") + name + "'";
-      SlabSelection sel = select_slab(dset.get(), slab, nullptr, path, what);
-      static double nothing = 0;
-      void* buf = values.empty() ? static_cast<void*>(&nothing) : values.data();
-      detail::check(
-          H5Dread(dset.get(), mem_type, sel.mem_space.get(), sel.file_space.get(), dxpl.get(), buf),
-          path, "cannot read " + what + " (corrupt?)");
+      // Bands of the file's chunk rows: each chunk is inflated once.
+      Hid dcpl = detail::checked(H5Dget_create_plist(dset.get()), H5Pclose, path,
+                                 "creation properties of " + what);
+      hsize_t chunk[2] = {0, 0};
+      if (H5Pget_layout(dcpl.get()) == H5D_CHUNKED && H5Pget_chunk(dcpl.get(), 2, chunk) == 2)
+        band = static_cast<int>(std::max<hsize_t>(1, chunk[0]));
     });
     co.agree();
-  };
-  // (The same file on every rank: every rank gets the same answer.)
-  const std::array<bool, fields::kCount> present = detail::read_checkpoint_fields(fid, c, read);
-
-  co.run([&] { detail::read_checkpoint_ledger(fid, path, c); });
-  co.agree();
-  // Each rank sums the cells it read. When the ranks' slabs cover the grid
+    sums.add_cells(f.checkpoint, static_cast<const std::int64_t*>(nullptr), TileSlab{}, c.nx);
+    const Bands bands = slab_bands(comm, slab, band);
+    for (int k = 0; k < bands.count; ++k) {
+      const int y0 = std::min(k * bands.band, std::max(slab.ny, 0));
+      const int y1 = slab_empty(slab) ? y0 : std::min(y0 + bands.band, slab.ny);
+      co.run([&] {
+        buf.resize(std::max<std::size_t>(e, e * static_cast<std::size_t>(y1 - y0) *
+                                                static_cast<std::size_t>(std::max(slab.nx, 0))));
+        SlabSelection sel = select_band(dset.get(), slab, y0, y1, false, path, what);
+        detail::check(H5Dread(dset.get(), units ? H5T_NATIVE_INT64 : H5T_NATIVE_FLOAT,
+                              sel.mem_space.get(), sel.file_space.get(), dxpl.get(), buf.data()),
+                      path, "cannot read " + what + " (corrupt?)");
+        if (y1 <= y0) return;
+        const TileSlab b{slab.x0, slab.y0 + y0, slab.nx, y1 - y0};
+        if (units)
+          sums.add_cells(f.checkpoint, reinterpret_cast<const std::int64_t*>(buf.data()), b, c.nx);
+        else
+          sums.add_cells(f.checkpoint, reinterpret_cast<const float*>(buf.data()), b, c.nx);
+        if (sink) sink(id, y0, y1, buf.data());
+      });
+      co.agree();
+    }
+  }
+  // Each rank summed the cells it read. When the ranks' slabs cover the grid
   // (a resume's tiling does), the sums are the whole datasets' and are
   // verified; a partial read verifies the spec and attributes only.
   {
-    const TileSlab mine = slab_empty(slab) ? TileSlab{} : slab;
-    detail::Checksums sums = detail::checkpoint_cell_checksums(c, mine, present);
     sums.allreduce(co.comm());
     unsigned long long cells = slab_empty(slab) ? 0 : slab_cells(slab);
     MPI_Allreduce(MPI_IN_PLACE, &cells, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, co.comm());
@@ -693,6 +863,32 @@ Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, cons
   }
   co.run([&] { detail::close_checked(file, path, "cannot close checkpoint"); });
   co.agree();
+  return c;
+}
+
+Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, const TileSlab& slab) {
+  Checkpoint values;
+  const std::size_t n = slab_empty(slab) ? 0 : slab_cells(slab);
+  Checkpoint c = read_checkpoint_parallel(comm, path, slab, [&](const Checkpoint&) -> TileRowsIn {
+    return [&](fields::Id id, int y0, int y1, const void* in) {
+      const bool units = fields::info(id).type == fields::Type::kUnits;
+      const std::size_t row = (units ? 8 : 4) * static_cast<std::size_t>(slab.nx);
+      char* to;
+      if (units) {
+        values.units[id].resize(n);
+        to = reinterpret_cast<char*>(values.units[id].data());
+      } else {
+        values.reals[id].resize(n);
+        to = reinterpret_cast<char*>(values.reals[id].data());
+      }
+      std::memcpy(to + row * static_cast<std::size_t>(y0), in,
+                  row * static_cast<std::size_t>(y1 - y0));
+    };
+  });
+  for (int i = 0; i < fields::kCount; ++i) {
+    c.units[static_cast<std::size_t>(i)] = std::move(values.units[static_cast<std::size_t>(i)]);
+    c.reals[static_cast<std::size_t>(i)] = std::move(values.reals[static_cast<std::size_t>(i)]);
+  }
   return c;
 }
 

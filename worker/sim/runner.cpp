@@ -108,28 +108,29 @@ io::PreviewLabels preview_labels(const Simulation& sim, const io::SnapshotMeta& 
 void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progress& progress,
                    const Context& ctx) {
   const std::string name = step_name(sim.step_index());
-  Simulation::Output o = sim.output();
   io::SnapshotMeta meta = sim.snapshot_meta();  // collective: exact totals
-  io::SnapshotFields f;
-  for (const fields::Id id : fields::snapshot_order()) f[id].data = o[id].data();
+  // Every layer of the registry, a band of rows at a time from the backend
+  // (one rank or several: the same parallel writer), never a whole field.
+  constexpr auto order = fields::snapshot_order();
+  const std::vector<fields::Id> layers(order.begin(), order.end());
   const std::string h5 = dir + "/snapshots/" + name + ".h5";
-  if (ctx.tiled())
-    io::write_snapshot_parallel(ctx.cart, h5, meta, f, ctx.slab, ctx.chunk_x, ctx.chunk_y);
-  else
-    io::write_snapshot(h5, meta, f);
+  io::write_snapshot_parallel(
+      ctx.cart, h5, meta, layers,
+      [&](fields::Id id, int y0, int y1, void* out) {
+        sim.layer_rows(id, y0, y1, static_cast<float*>(out));
+      },
+      ctx.slab, ctx.chunk_x, ctx.chunk_y);
   if (!ctx.root()) return;
-  io::write_xdmf(dir + "/snapshots/" + name + ".xdmf", name + ".h5", meta,
-                 io::snapshot_layer_ids(f));
+  io::write_xdmf(dir + "/snapshots/" + name + ".xdmf", name + ".h5", meta, layers);
   io::write_run_xdmf(dir);
   std::string png;
   if (previews) {
     png = dir + "/previews/" + name + ".png";
     const io::PreviewLabels labels = preview_labels(sim, meta);
-    // Tiled, the coordinator has only its tile: the preview is made from the
+    // The coordinator has only its tile: the preview is made from the
     // file (12 bytes per cell of the whole domain, on rank 0, for a moment).
-    io::Snapshot whole;
-    if (ctx.tiled()) whole = io::read_snapshot(h5, /*terrain_only=*/true);
-    const auto layer = [&](fields::Id id) { return ctx.tiled() ? whole[id].data() : o[id].data(); };
+    const io::Snapshot whole = io::read_snapshot(h5, /*terrain_only=*/true);
+    const auto layer = [&](fields::Id id) { return whole[id].data(); };
     io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, layer(fields::kBedrock),
                           layer(fields::kSand), layer(fields::kVegetation), io::kPreviewMaxPx,
                           &labels);
@@ -143,11 +144,11 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
 
 void write_checkpoint(Simulation& sim, const std::string& dir, const Context& ctx) {
   const std::string path = dir + "/checkpoints/" + step_name(sim.step_index()) + ".h5";
-  if (ctx.tiled())
-    io::write_checkpoint_parallel(ctx.cart, path, sim.checkpoint(), ctx.slab, ctx.chunk_x,
-                                  ctx.chunk_y);
-  else
-    io::write_checkpoint(path, sim.checkpoint());
+  // Band by band from the backend, on one rank or several.
+  io::write_checkpoint_parallel(
+      ctx.cart, path, sim.checkpoint_header(),
+      [&](fields::Id id, int y0, int y1, void* out) { sim.state_rows(id, y0, y1, out); }, ctx.slab,
+      ctx.chunk_x, ctx.chunk_y);
   if (!ctx.root()) return;
   // Keep the newest two: a crash while writing one still leaves a good one.
   std::vector<std::string> all;
@@ -436,11 +437,19 @@ class JobRun {
     ctx_.chunk_x = ctx_.d.chunk_x;
     ctx_.chunk_y = ctx_.d.chunk_y;
     if (cfg_.resume) {
-      io::Checkpoint c = ctx_.tiled()
-                             ? io::read_checkpoint_parallel(ctx_.cart, start.checkpoint, ctx_.slab)
-                             : io::read_checkpoint(start.checkpoint);
-      c.job_spec_json = start.spec_json;  // with this run's overrides
-      sim_ = std::make_unique<Simulation>(c, cfg_.options, tiling_->place);
+      // The simulation is made from the header, then its state read into
+      // the backend band by band (no copy of the tile's state).
+      io::read_checkpoint_parallel(
+          ctx_.cart, start.checkpoint, ctx_.slab, [&](const io::Checkpoint& header) {
+            io::Checkpoint c = header;
+            c.job_spec_json = start.spec_json;  // with this run's overrides
+            sim_ = std::make_unique<Simulation>(c, cfg_.options, tiling_->place,
+                                                Simulation::Deferred{});
+            return io::TileRowsIn([this](fields::Id id, int y0, int y1, const void* in) {
+              sim_->load_rows(id, y0, y1, in);
+            });
+          });
+      sim_->loaded();
     } else {
       sim_ = std::make_unique<Simulation>(spec, start.base_dir, cfg_.options, tiling_->place);
     }
@@ -654,12 +663,20 @@ class JobRun {
     return most;
   }
 
-  // The peak resident set of every rank (state, work buffers, halos, output
-  // copies, MPI and HDF5): {sum, largest}. Collective.
-  std::array<long long, 2> peak_memory() {
+  // The peak resident set of every rank since it started (state, work
+  // buffers, halos, output bands, MPI and HDF5): {sum, largest}. The
+  // kernel's high-water mark, VmHWM of /proc/self/status (getrusage's
+  // ru_maxrss where /proc is missing). Collective.
+  static long long peak_rss_bytes() {
+    std::ifstream status("/proc/self/status");
+    for (std::string line; std::getline(status, line);)
+      if (line.rfind("VmHWM:", 0) == 0) return std::stoll(line.substr(6)) * 1024;  // kB
     struct rusage usage {};
     ::getrusage(RUSAGE_SELF, &usage);
-    const long long rss = static_cast<long long>(usage.ru_maxrss) * 1024;  // kB on Linux
+    return static_cast<long long>(usage.ru_maxrss) * 1024;  // kB on Linux
+  }
+  std::array<long long, 2> peak_memory() {
+    const long long rss = peak_rss_bytes();
     std::array<long long, 2> out = {0, 0};
     MPI_Reduce(&rss, &out[0], 1, MPI_LONG_LONG, MPI_SUM, 0, ctx_.comm);
     MPI_Reduce(&rss, &out[1], 1, MPI_LONG_LONG, MPI_MAX, 0, ctx_.comm);

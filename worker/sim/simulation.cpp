@@ -4,6 +4,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "init/layers.h"
 #include "job/spec.h"
@@ -29,35 +32,63 @@ events::Brush brush_of(const erg::v1::Brush& b, const Model& m) {
 }
 }  // namespace
 
+void initial_rows(const erg::v1::JobSpec& spec, const Model& model, const std::string& base_dir,
+                  const std::function<void(fields::Id, int, int, const void*)>& set) {
+  using init::LayerKind;
+  const auto& L = spec.layers();
+  const TileGeom& tile = model.tile;
+  const int band = static_cast<int>(
+      std::clamp<std::size_t>(kInitialBandCells / static_cast<std::size_t>(std::max(tile.nx, 1)), 1,
+                              static_cast<std::size_t>(std::max(tile.ny, 1))));
+  std::vector<units_t> bedrock, sand;
+  std::vector<float> vegetation, resistance, obstacles;
+  for (int y0 = 0; y0 < tile.ny; y0 += band) {
+    const int y1 = std::min(y0 + band, tile.ny);
+    // The band as a tile of its own: every generator is a function of the
+    // global cell, so the bands give the tile's values.
+    TileGeom g = tile;
+    g.y0 = tile.y0 + y0;
+    g.ny = y1 - y0;
+    const auto convert = [&](const std::vector<double>& v, auto& out, auto f) {
+      out.resize(v.size());
+      for (std::size_t i = 0; i < v.size(); ++i) out[i] = f(v[i]);
+    };
+    convert(init::generate_layer(L.bedrock(), LayerKind::kBedrock, spec, g, base_dir), bedrock,
+            [](double m) { return m_to_units(m); });
+    convert(init::generate_layer(L.sand(), LayerKind::kSand, spec, g, base_dir), sand,
+            [](double m) { return m_to_units(std::max(0.0, m)); });
+    convert(init::generate_layer(L.vegetation(), LayerKind::kVegetation, spec, g, base_dir),
+            vegetation, [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
+    convert(init::generate_layer(L.resistance(), LayerKind::kResistance, spec, g, base_dir),
+            resistance, [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
+    convert(init::generate_obstacles(L.obstacles(), spec, g, base_dir), obstacles,
+            [](double o) { return static_cast<float>(o); });
+    // Obstacles hold no sand [BR04 4]: initial sand inside them is dropped.
+    for (std::size_t i = 0; i < sand.size(); ++i)
+      if (obstacles::is_obstacle(obstacles[i])) sand[i] = 0;
+    set(fields::kBedrock, y0, y1, bedrock.data());
+    set(fields::kSand, y0, y1, sand.data());
+    set(fields::kVegetation, y0, y1, vegetation.data());
+    set(fields::kResistance, y0, y1, resistance.data());
+    set(fields::kObstacles, y0, y1, obstacles.data());
+  }
+}
+
 TileState initial_state(const erg::v1::JobSpec& spec, const Model& model,
                         const std::string& base_dir) {
   TileState s;
   s.allocate(model.tile);
-  using init::LayerKind;
-  const auto& L = spec.layers();
-  set_owned_cells(
-      s.units[fields::kBedrock],
-      init::generate_layer(L.bedrock(), LayerKind::kBedrock, spec, model.tile, base_dir),
-      [](double m) { return m_to_units(m); });
-  set_owned_cells(s.units[fields::kSand],
-                  init::generate_layer(L.sand(), LayerKind::kSand, spec, model.tile, base_dir),
-                  [](double m) { return m_to_units(std::max(0.0, m)); });
-  set_owned_cells(
-      s.reals[fields::kVegetation],
-      init::generate_layer(L.vegetation(), LayerKind::kVegetation, spec, model.tile, base_dir),
-      [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
-  set_owned_cells(
-      s.reals[fields::kResistance],
-      init::generate_layer(L.resistance(), LayerKind::kResistance, spec, model.tile, base_dir),
-      [](double v) { return static_cast<float>(std::clamp(v, 0.0, 1.0)); });
-  set_owned_cells(s.reals[fields::kObstacles],
-                  init::generate_obstacles(L.obstacles(), spec, model.tile, base_dir),
-                  [](double o) { return static_cast<float>(o); });
-  // Obstacles hold no sand [BR04 4]: initial sand inside them is dropped.
-  for (int y = 0; y < model.tile.ny; ++y)
-    for (int x = 0; x < model.tile.nx; ++x)
-      if (obstacles::is_obstacle(s.reals[fields::kObstacles](x, y)))
-        s.units[fields::kSand](x, y) = 0;
+  initial_rows(spec, model, base_dir, [&](fields::Id id, int y0, int y1, const void* in) {
+    const bool units = fields::info(id).type == fields::Type::kUnits;
+    for (int y = y0; y < y1; ++y)
+      for (int x = 0; x < model.tile.nx; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y - y0) * model.tile.nx + x;
+        if (units)
+          s.units[id](x, y) = static_cast<const units_t*>(in)[i];
+        else
+          s.reals[id](x, y) = static_cast<const float*>(in)[i];
+      }
+  });
   return s;
 }
 
@@ -85,10 +116,32 @@ Simulation::Simulation(const erg::v1::JobSpec& spec, const std::string& base_dir
     : spec_(spec) {
   spec_json_ = job::to_json(spec_);
   place_tile(place);
-  init_backend(opt, initial_state(spec_, model_, base_dir));
+  make_backend_for(opt);
+  initial_rows(spec_, model_, base_dir, [&](fields::Id id, int y0, int y1, const void* in) {
+    backend_->upload_rows(id, y0, y1, in);
+  });
+  ready();
 }
 
-Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt, const Placement& place) {
+Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt, const Placement& place)
+    : Simulation(ckpt, opt, place, Deferred{}) {
+  // Every state field of the registry; one that an older checkpoint lacks
+  // keeps its default.
+  fields::each([&](fields::Id id, const fields::Info& f) {
+    if (!f.state || ckpt.size(id) == 0) return;
+    if (ckpt.size(id) != static_cast<std::size_t>(model_.tile.nx) * model_.tile.ny)
+      throw std::invalid_argument(std::string("checkpoint field ") + f.name +
+                                  " does not hold the tile's cells");
+    if (f.type == fields::Type::kUnits)
+      load_rows(id, 0, model_.tile.ny, ckpt.units[id].data());
+    else
+      load_rows(id, 0, model_.tile.ny, ckpt.reals[id].data());
+  });
+  loaded();
+}
+
+Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt, const Placement& place,
+                       Deferred) {
   spec_ = job::parse_json(ckpt.job_spec_json, "checkpoint job_spec");
   job::apply_defaults(spec_);
   spec_json_ = job::to_json(spec_);
@@ -98,18 +151,11 @@ Simulation::Simulation(const io::Checkpoint& ckpt, const RunOptions& opt, const 
     if (name == "sand_added_by_events") sand_added_ = parse_decimal(value);
     if (name == "bedrock_added_by_events") bedrock_added_ = parse_decimal(value);
   }
-  TileState s;
-  s.allocate(model_.tile);
-  // Every state field of the registry; one that an older checkpoint lacks
-  // keeps its default (TileState::allocate).
-  fields::each([&](fields::Id id, const fields::Info& f) {
-    if (!f.state || ckpt.size(id) == 0) return;
-    if (f.type == fields::Type::kUnits)
-      set_owned_cells(s.units[id], ckpt.units[id]);
-    else
-      set_owned_cells(s.reals[id], ckpt.reals[id]);
-  });
-  init_backend(opt, s);
+  make_backend_for(opt);
+}
+
+void Simulation::loaded() {
+  ready();
 }
 
 void Halo::run(GhostOp op, std::initializer_list<fields::Id> ids, int width) {
@@ -119,14 +165,18 @@ void Halo::run(GhostOp op, std::initializer_list<fields::Id> ids, int width) {
   b_->ghosts(op, list);
 }
 
-void Simulation::init_backend(const RunOptions& opt, const TileState& initial) {
+void Simulation::make_backend_for(const RunOptions& opt) {
   model_.avalanche_everywhere = opt.avalanche_everywhere;
   backend_ = make_backend(opt.backend, model_, opt.threads, *exchange_, local_rank_);
   halo_.emplace(*backend_, model_);
-  backend_->upload(initial);
-  // Per-cell constants read in the ghosts: repose tangents (avalanching) and
-  // obstacles (hop paths, echo dunes, walls).
-  halo_->fill({fields::kTanL, fields::kObstacles});
+}
+
+void Simulation::ready() {
+  backend_->upload_done();
+  // Per-cell constants read in the ghosts: repose tangents (avalanching; the
+  // CPU backend derives them from vegetation, ghosts included) and obstacles
+  // (hop paths, echo dunes, walls).
+  halo_->fill({fields::kTanL, fields::kVegetation, fields::kObstacles});
   backend_->obstacles_changed();
 }
 
@@ -179,9 +229,9 @@ void Simulation::apply_events(std::int64_t step) {
     }
   }
   if (vegetation && obstacles)
-    halo_->fill({fields::kTanL, fields::kObstacles});
+    halo_->fill({fields::kTanL, fields::kVegetation, fields::kObstacles});
   else if (vegetation)
-    halo_->fill({fields::kTanL});
+    halo_->fill({fields::kTanL, fields::kVegetation});
   else if (obstacles)
     halo_->fill({fields::kObstacles});
   if (obstacles) backend_->obstacles_changed();
@@ -256,24 +306,45 @@ TileState Simulation::state() {
   return s;
 }
 
-io::Checkpoint Simulation::checkpoint() {
-  const TileState s = state();
-  const TileGeom& g = model_.tile;
+io::Checkpoint Simulation::checkpoint_header() const {
   io::Checkpoint c;
   c.step = step_;
-  c.nx = g.gnx;
-  c.ny = g.gny;
+  c.nx = model_.tile.gnx;
+  c.ny = model_.tile.gny;
   c.job_spec_json = spec_json_;
-  fields::each([&](fields::Id id, const fields::Info& f) {
-    if (!f.state) return;
-    if (f.type == fields::Type::kUnits)
-      c.units[id] = owned_cells(s.units[id]);
-    else
-      c.reals[id] = owned_cells(s.reals[id]);
-  });
   c.ledger = {{"sand_added_by_events", to_decimal(sand_added_)},
               {"bedrock_added_by_events", to_decimal(bedrock_added_)}};
   return c;
+}
+
+io::Checkpoint Simulation::checkpoint() {
+  io::Checkpoint c = checkpoint_header();
+  const TileGeom& g = model_.tile;
+  const std::size_t n = static_cast<std::size_t>(g.nx) * g.ny;
+  fields::each([&](fields::Id id, const fields::Info& f) {
+    if (!f.state) return;
+    if (f.type == fields::Type::kUnits) {
+      c.units[id].resize(n);
+      state_rows(id, 0, g.ny, c.units[id].data());
+    } else {
+      c.reals[id].resize(n);
+      state_rows(id, 0, g.ny, c.reals[id].data());
+    }
+  });
+  return c;
+}
+
+void Simulation::layer_rows(fields::Id id, int y0, int y1, float* out) {
+  if (fields::info(id).type == fields::Type::kFloat) {
+    backend_->download_rows(id, y0, y1, out);
+    return;
+  }
+  // Integer units as metres, as download_owned gives them.
+  const std::size_t n =
+      static_cast<std::size_t>(y1 - y0) * static_cast<std::size_t>(model_.tile.nx);
+  std::vector<units_t> band(n);
+  backend_->download_rows(id, y0, y1, band.data());
+  for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<float>(units_to_m_d(band[i]));
 }
 
 Simulation::Output Simulation::output() {

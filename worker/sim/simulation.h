@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <functional>
 #include <initializer_list>
 #include <memory>
@@ -84,6 +85,16 @@ class Simulation {
   // A run continued from a checkpoint (its spec is inside). Its arrays hold
   // the tile's cells (the whole domain when place is the default).
   Simulation(const io::Checkpoint& ckpt, const RunOptions& opt, const Placement& place = {});
+  // A run continued from a checkpoint read band by band: `header` without
+  // its arrays; then load_rows for the bands of every state field the file
+  // has (io::read_checkpoint_parallel's sink), then loaded() (collective:
+  // fills the ghosts). A field the file lacks keeps its default.
+  struct Deferred {};
+  Simulation(const io::Checkpoint& header, const RunOptions& opt, const Placement& place, Deferred);
+  void load_rows(fields::Id id, int y0, int y1, const void* in) {
+    backend_->upload_rows(id, y0, y1, in);
+  }
+  void loaded();
 
   // Advances one step: the step's events, then the pipeline.
   void step();
@@ -123,6 +134,17 @@ class Simulation {
   TileState state();
   // The tile's exact state; nx, ny are the global domain size.
   io::Checkpoint checkpoint();
+  // The same without its arrays (step, grid, spec, ledger): a checkpoint
+  // written band by band from state_rows.
+  io::Checkpoint checkpoint_header() const;
+  // Rows [y0, y1) of a state field at the owned cells, as stored (int64
+  // units or float; io::TileRows).
+  void state_rows(fields::Id id, int y0, int y1, void* out) {
+    backend_->download_rows(id, y0, y1, out);
+  }
+  // Rows [y0, y1) of a snapshot layer at the owned cells, in its unit
+  // (float metres for integer fields; io::TileRows).
+  void layer_rows(fields::Id id, int y0, int y1, float* out);
 
   // The snapshot layers of the registry (core/fields.h) at the tile's owned
   // cells, row-major, in their units (empty for fields not in snapshots).
@@ -137,7 +159,11 @@ class Simulation {
 
  private:
   void place_tile(const Placement& place);
-  void init_backend(const RunOptions& opt, const TileState& initial);
+  // The backend, its state to be set by upload_rows, then ready().
+  void make_backend_for(const RunOptions& opt);
+  void ready();
+  // The initial layers generated band by band into the backend.
+  void generate_initial_state(const std::string& base_dir);
   void apply_events(std::int64_t step);
 
   erg::v1::JobSpec spec_;
@@ -158,5 +184,13 @@ class Simulation {
 // Generates the initial exact state of a tile from the spec.
 TileState initial_state(const erg::v1::JobSpec& spec, const Model& model,
                         const std::string& base_dir);
+// The same, rows [y0, y1) of the tile at a time: set(id, y0, y1, values)
+// gets each state field the layers give (int64 units or float, row-major
+// [y1 - y0][nx]); airborne sand starts at its default. Rows are generated in
+// bands of about kInitialBandCells cells, so that no layer of the whole tile
+// is ever held in doubles.
+inline constexpr std::size_t kInitialBandCells = std::size_t{1} << 20;
+void initial_rows(const erg::v1::JobSpec& spec, const Model& model, const std::string& base_dir,
+                  const std::function<void(fields::Id, int, int, const void*)>& set);
 
 }  // namespace erg

@@ -428,12 +428,15 @@ AvalancheResult CpuBackend::avalanche(bool bedrock, int iterations, const Refill
                                       bool* settled) {
   if (settled) *settled = false;
   if (iterations <= 0) return {};
+  // h_a and f are the two halves of the work buffer that held the wind.
+  wind_valid_ = false;
   const AvalancheLayers layers{f_.bedrock, f_.sand, f_.obstacles, f_.tan_l, h_a_, frac_};
   return AvalancheSweep(m_, g_, threads_, ex_, refill, layers, bedrock, iterations).run(settled);
 }
 
 AvalancheResult CpuBackend::avalanche_sand(const Refill& refill) {
   if (m_.avalanche_iterations <= 0) return {};
+  repose_tangents();  // into storage the reptation strength held (cpu_backend.h)
   return avalanche(false, m_.avalanche_iterations, refill, nullptr);
 }
 

@@ -16,16 +16,34 @@ CpuBackend::CpuBackend(const Model& model, int threads, dist::Exchange& ex)
       threads_(threads > 0 ? threads : omp_get_max_threads()),
       ex_(ex),
       smoother_(model.coarse, model.tile.nx / model.coarse.cx, model.tile.ny / model.coarse.cy) {
+  // A buffer for each field that owns one (core/fields.h Storage); the
+  // others are views of the shared buffers (see cpu_backend.h).
   fields::each([&](fields::Id id, const fields::Info& f) {
+    if (f.storage != fields::Storage::kOwn) return;
+    if (id == fields::kEcho && !m_.echo.on) return;  // read as no_echo_
     if (f.type == fields::Type::kUnits)
       units(id).reset(g_, static_cast<units_t>(f.initial));
     else
       reals(id).reset(g_, f.initial);
   });
-  height_units_.reset(g_);
-  sand_next_.reset(g_);
-  h_a_.reset(g_);
-  frac_.reset(g_);
+  work_.reset(g_);
+  spare_.reset(g_);
+  float* half = reinterpret_cast<float*>(work_.data());
+  f_.wind_x.view(half, g_);
+  f_.wind_y.view(half + g_.size(), g_);
+  h_a_.view(half, g_);
+  frac_.view(half + g_.size(), g_);
+  f_.shadow.view(spare_.data(), g_);
+  f_.reptation.view(spare_.data(), g_);
+  f_.tan_l.view(spare_.data(), g_);
+  f_.landed.view(f_.deposited.data(), g_);
+  no_echo_.assign(static_cast<std::size_t>(g_.pitch), 0.0f);
+  static_assert(fields::info(fields::kWindX).storage == fields::Storage::kRecomputed &&
+                fields::info(fields::kWindY).storage == fields::Storage::kRecomputed &&
+                fields::info(fields::kShadow).storage == fields::Storage::kRecomputed &&
+                fields::info(fields::kTanL).storage == fields::Storage::kRecomputed &&
+                fields::info(fields::kReptation).storage == fields::Storage::kReplaced &&
+                fields::info(fields::kLanded).storage == fields::Storage::kReplaced);
 }
 
 void CpuBackend::upload(const TileState& s) {
@@ -37,7 +55,6 @@ void CpuBackend::upload(const TileState& s) {
       reals(id) = s.reals[id];
   });
   bedrock_changed_ = true;
-  update_repose();
 }
 
 void CpuBackend::ghosts(GhostOp op, std::span<const FieldGhosts> fields) {
@@ -69,7 +86,32 @@ void CpuBackend::download(TileState& s) {
   });
 }
 
+void CpuBackend::restore_outputs(fields::Id id) {
+  if (id == fields::kWindX || id == fields::kWindY || id == fields::kShadow) {
+    if (!wind_valid_ && wind_ran_) {
+      warp_rows(last_a_);
+      if (!last_batches_.empty()) perturb_wind(last_batches_);
+    }
+    wind_valid_ = true;
+  }
+  if (id == fields::kShadow) {
+    if (!shadow_valid_ && wind_ran_) shadow();
+    shadow_valid_ = true;
+  }
+}
+
 void CpuBackend::download_owned(fields::Id id, std::vector<float>& out) {
+  if (id == fields::kTanL) {  // from vegetation: its storage holds other things between avalanches
+    out = owned_cells<float>(f_.vegetation, [&](float v) {
+      return vegetation::repose_tan(v, m_.tan_l_sand, m_.tan_l_vegetated);
+    });
+    return;
+  }
+  if (id == fields::kEcho && !m_.echo.on) {
+    out.assign(static_cast<std::size_t>(g_.nx) * g_.ny, 0.0f);
+    return;
+  }
+  restore_outputs(id);
   if (fields::info(id).type == fields::Type::kUnits)
     out = owned_cells<float>(units(id),
                              [](units_t u) { return static_cast<float>(units_to_m_d(u)); });
@@ -82,12 +124,51 @@ void CpuBackend::upload_owned(fields::Id id, const std::vector<float>& in) {
   set_owned_cells(reals(id), in);
 }
 
-void CpuBackend::update_repose() {
+void CpuBackend::download_rows(fields::Id id, int y0, int y1, void* out) {
+  check_rows(id, y0, y1, g_, false);
+  if ((id == fields::kTanL) || (id == fields::kEcho && !m_.echo.on)) {
+    std::vector<float> all;
+    download_owned(id, all);
+    std::memcpy(out, all.data() + static_cast<std::size_t>(y0) * g_.nx,
+                sizeof(float) * static_cast<std::size_t>(y1 - y0) * g_.nx);
+    return;
+  }
+  restore_outputs(id);
+  const std::size_t row = stored_bytes(id) * static_cast<std::size_t>(g_.nx);
+  auto* o = static_cast<char*>(out);
+  for (int y = y0; y < y1; ++y, o += row)
+    std::memcpy(o,
+                fields::info(id).type == fields::Type::kUnits
+                    ? static_cast<const void*>(units(id).row(y))
+                    : static_cast<const void*>(reals(id).row(y)),
+                row);
+}
+
+void CpuBackend::upload_rows(fields::Id id, int y0, int y1, const void* in) {
+  check_rows(id, y0, y1, g_, true);
+  const std::size_t row = stored_bytes(id) * static_cast<std::size_t>(g_.nx);
+  const auto* i = static_cast<const char*>(in);
+  for (int y = y0; y < y1; ++y, i += row)
+    std::memcpy(fields::info(id).type == fields::Type::kUnits
+                    ? static_cast<void*>(units(id).row(y))
+                    : static_cast<void*>(reals(id).row(y)),
+                i, row);
+}
+
+void CpuBackend::upload_done() {
+  bedrock_changed_ = true;
+}
+
+// Over the ghosts the avalanching reads too: vegetation's ghosts are filled
+// that wide (fields::Reach::kAvalanche), and each cell's tangent is a
+// function of its vegetation alone, so a ghost gets its owner's value.
+void CpuBackend::repose_tangents() {
+  const int w = m_.ghost_width(fields::Reach::kAvalanche);
 #pragma omp parallel for num_threads(threads_) schedule(static)
-  for (int y = 0; y < g_.ny; ++y) {
+  for (int y = -w; y < g_.ny + w; ++y) {
     const float* v = f_.vegetation.row(y);
     float* t = f_.tan_l.row(y);
-    for (int x = 0; x < g_.nx; ++x)
+    for (int x = -w; x < g_.nx + w; ++x)
       t[x] = vegetation::repose_tan(v[x], m_.tan_l_sand, m_.tan_l_vegetated);
   }
 }
@@ -143,7 +224,6 @@ void CpuBackend::set_vegetation(const events::Region& r) {
     for (int x = 0; x < g_.nx; ++x)
       if (events::in_region(r, centre_x(g_, x), centre_y(g_, y))) v[x] = r.value;
   }
-  update_repose();
 }
 
 total_t CpuBackend::set_obstacle(const obstacles::Shape& sh, bool remove) {

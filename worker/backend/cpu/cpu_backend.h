@@ -44,6 +44,9 @@ class CpuBackend final : public Backend {
   void download(TileState& s) override;
   void download_owned(fields::Id id, std::vector<float>& out) override;
   void upload_owned(fields::Id id, const std::vector<float>& in) override;
+  void download_rows(fields::Id id, int y0, int y1, void* out) override;
+  void upload_rows(fields::Id id, int y0, int y1, const void* in) override;
+  void upload_done() override;
 
   void ghosts(GhostOp op, std::span<const FieldGhosts> fields) override;
   void obstacles_changed() override;  // updates any_obstacles_
@@ -65,7 +68,6 @@ class CpuBackend final : public Backend {
   Totals totals() override;
 
  private:
-  void update_repose();  // tan_l from vegetation
   // One avalanching sweep structure shared by sand and bedrock (avalanching.cpp).
   // settled (optional): set when an iteration moved nothing and no donor is
   // stuck, i.e. running again on the same heights would be the identity.
@@ -82,11 +84,34 @@ class CpuBackend final : public Backend {
   Field<float>& reals(fields::Id id) { return f_.reals[id]; }
   bool any_obstacles_ = false;   // on this tile or its ghosts (saltation's slow path)
   bool bedrock_changed_ = true;  // since bedrock avalanching last found it settled
-  // scratch of single stages
-  Field<units_t> height_units_;  // b + s, for reptation
-  Field<units_t> sand_next_;     // reptation writes the new sand here
-  // avalanching: heights (updated where they change) and fractions f
-  Field<float> h_a_, frac_;
+  // Storage shared between fields whose lifetimes within a step do not
+  // overlap (core/fields.h Storage; docs/design.md "Memory"):
+  //  - work_, 8 bytes a cell: the surface wind (wind_x, wind_y: its two
+  //    float halves) from the wind stage to saltation; reptation's new sand
+  //    (sand_next_, int64); avalanching's heights and fractions (h_a_,
+  //    frac_: the two halves again);
+  //  - spare_, 4 bytes a cell: the wind shadow until saltation's impacts,
+  //    which write the reptation strength s_r over it cell by cell; then the
+  //    repose tangents (tan_l), recomputed from vegetation when avalanching
+  //    begins;
+  //  - landed sand, which the impacts replace cell by cell with the
+  //    deposited sand (deposited_m) kept for snapshots.
+  // What a snapshot reads after its storage was reused, wind and shadow, is
+  // computed again from the step's heights and wind (restore_outputs).
+  Field<units_t> work_;
+  Field<float> spare_;
+  Field<units_t>& sand_next_ = work_;
+  Field<float> h_a_, frac_;     // views of work_'s halves
+  std::vector<float> no_echo_;  // a row of zeros: echo dunes off, no echo field
+  const float* echo_row(int y) { return m_.echo.on ? f_.echo.row(y) : no_echo_.data() + g_.halo; }
+  // Whether wind and shadow still hold the last step's values, and what
+  // computed them (to compute them again).
+  bool wind_valid_ = true, shadow_valid_ = true, wind_ran_ = false;
+  Vec2 last_a_{};
+  std::vector<wind_primitives::Batch> last_batches_;
+  void warp_rows(Vec2 a);  // the wind at every owned cell, from the gradients
+  void restore_outputs(fields::Id id);
+  void repose_tangents();  // tan_l from vegetation, ghosts included
   // wind warping
   CoarseSmoother smoother_;
   std::vector<double> coarse_mine_, window_;  // this tile's coarse cells, with their halo

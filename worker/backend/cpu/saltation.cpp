@@ -39,12 +39,15 @@ void lift_row(units_t* __restrict s, units_t* __restrict air, const float* sh, c
   }
 }
 
-// Returns whether any bedrock was abraded.
+// Returns whether any bedrock was abraded. The reptation strength sr is
+// written over the shadow sh and the deposited sand over the landed sand
+// `in`, cell by cell (shared storage, core/fields.h): each cell's values are
+// read before its results are written.
 bool impact_row(const units_t* in, units_t* __restrict s, units_t* __restrict b,
                 units_t* __restrict air, const float* sh, const float* v, const float* r,
-                const float* wx, const float* wy, const float* echo, float* __restrict sr,
-                units_t* __restrict deposited, const TileGeom& g, int y, std::uint64_t seed,
-                std::uint64_t step, const saltation::Params& p) {
+                const float* wx, const float* wy, const float* echo, float* sr, units_t* deposited,
+                const TileGeom& g, int y, std::uint64_t seed, std::uint64_t step,
+                const saltation::Params& p) {
   const int nx = g.nx;
   units_t abraded = 0;
   if (p.stochastic) {
@@ -76,7 +79,7 @@ void CpuBackend::saltation_hop(std::int64_t step) {
   // (1) Lift into the airborne buffer (which holds last step's bounces).
   for_each_row(threads_, g_, [&](int y) {
     lift_row(f_.sand.row(y), f_.airborne.row(y), f_.shadow.row(y), f_.vegetation.row(y),
-             f_.wind_x.row(y), f_.wind_y.row(y), f_.echo.row(y), g_, y, seed, ustep, p);
+             f_.wind_x.row(y), f_.wind_y.row(y), echo_row(y), g_, y, seed, ustep, p);
   });
 
   // (2) Scatter one hop downwind into `f_.landed` (owned + ghosts). Rows are cut
@@ -121,9 +124,10 @@ void CpuBackend::saltation_impact(std::int64_t step) {
   for (int y = 0; y < g_.ny; ++y)
     abraded = impact_row(f_.landed.row(y), f_.sand.row(y), f_.bedrock.row(y), f_.airborne.row(y),
                          f_.shadow.row(y), f_.vegetation.row(y), f_.resistance.row(y),
-                         f_.wind_x.row(y), f_.wind_y.row(y), f_.echo.row(y), f_.reptation.row(y),
+                         f_.wind_x.row(y), f_.wind_y.row(y), echo_row(y), f_.reptation.row(y),
                          f_.deposited.row(y), g_, y, seed, ustep, p) ||
               abraded;
+  shadow_valid_ = false;  // the reptation strength is in its storage now
   if (abraded) bedrock_changed_ = true;
 }
 

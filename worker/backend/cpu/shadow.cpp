@@ -95,6 +95,7 @@ void CpuBackend::shadow() {
         out[x] = echo_dunes::classify(base, o_base, pitch, x, y, {wx[x], wy[x]}, e);
     }
   }
+  shadow_valid_ = true;
 }
 
 }  // namespace erg::cpu

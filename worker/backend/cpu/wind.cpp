@@ -157,11 +157,24 @@ void CpuBackend::heights() {
 
 // Reads no ghosts: the heights' exchange may run meanwhile (Simulation::step).
 void CpuBackend::wind(Vec2 a) {
-  const CoarseGrid& c = m_.coarse;
   const wind_warping::TileWindow t = smoother_.tile();
   ex_.coarse_window(coarse_mine_, t.tcnx, t.tcny, t.hx, t.hy, window_);
   smoother_.gradients(window_, grad_x_, grad_y_, threads_);
+  last_a_ = a;
+  last_batches_.clear();
+  wind_ran_ = true;
+  warp_rows(a);
+  wind_valid_ = true;
+  shadow_valid_ = false;
+}
 
+// Venturi and warping at every owned cell from the heights and this step's
+// coarse gradients (no exchange): what wind() ends with, and what
+// restore_outputs runs again for a snapshot after the wind's storage was
+// reused within the step.
+void CpuBackend::warp_rows(Vec2 a) {
+  const CoarseGrid& c = m_.coarse;
+  const wind_warping::TileWindow t = smoother_.tile();
   const float k = m_.venturi_k;
   const wind_warping::Params wp = m_.warp;
   const int gnx = t.tcnx + 2;  // the gradient arrays' width
@@ -199,6 +212,7 @@ void CpuBackend::wind(Vec2 a) {
 // of the corner, so the bits are the same).
 void CpuBackend::perturb_wind(const std::vector<wind_primitives::Batch>& batches) {
   namespace wp = wind_primitives;
+  if (&batches != &last_batches_) last_batches_ = batches;
   for (const wp::Batch& b : batches) {
 #pragma omp parallel num_threads(threads_)
     {

@@ -489,6 +489,33 @@ void CudaBackend::upload_owned(fields::Id id, const std::vector<float>& in) {
                               cudaMemcpyHostToDevice));
 }
 
+void CudaBackend::download_rows(fields::Id id, int y0, int y1, void* out) {
+  check_rows(id, y0, y1, g_, false);
+  if (y1 == y0) return;
+  const std::size_t e = stored_bytes(id);
+  const void* src = fields::info(id).type == fields::Type::kUnits
+                        ? static_cast<const void*>(units(id).get() + g_.at(0, y0))
+                        : static_cast<const void*>(reals(id).get() + g_.at(0, y0));
+  ERG_CUDA_CHECK(cudaMemcpy2D(out, e * g_.nx, src, e * g_.pitch, e * g_.nx,
+                              static_cast<std::size_t>(y1 - y0), cudaMemcpyDeviceToHost));
+}
+
+void CudaBackend::upload_rows(fields::Id id, int y0, int y1, const void* in) {
+  check_rows(id, y0, y1, g_, true);
+  if (y1 == y0) return;
+  const std::size_t e = stored_bytes(id);
+  void* dst = fields::info(id).type == fields::Type::kUnits
+                  ? static_cast<void*>(units(id).get() + g_.at(0, y0))
+                  : static_cast<void*>(reals(id).get() + g_.at(0, y0));
+  ERG_CUDA_CHECK(cudaMemcpy2D(dst, e * g_.pitch, in, e * g_.nx, e * g_.nx,
+                              static_cast<std::size_t>(y1 - y0), cudaMemcpyHostToDevice));
+}
+
+void CudaBackend::upload_done() {
+  bedrock_changed_ = true;
+  update_repose();
+}
+
 void CudaBackend::update_repose() {
   const Launch l = owned_cells(g_);
   ERG_LAUNCH(repose_kernel, l.grid, l.block, g_, d_.vegetation.get(), d_.tan_l.get(), m_.tan_l_sand,

@@ -254,6 +254,9 @@ class CudaBackend final : public Backend {
   void download(TileState& s) override;
   void download_owned(fields::Id id, std::vector<float>& out) override;
   void upload_owned(fields::Id id, const std::vector<float>& in) override;
+  void download_rows(fields::Id id, int y0, int y1, void* out) override;
+  void upload_rows(fields::Id id, int y0, int y1, const void* in) override;
+  void upload_done() override;
 
   void ghosts(GhostOp op, std::span<const FieldGhosts> fields) override;
   void obstacles_changed() override;  // updates any_obstacles_
