@@ -108,6 +108,9 @@ inline std::string stage_mismatch(const StageResult& want, const StageResult& go
       cells = x.size();
       count = detail::differing(x.data(), y.data(), cells, &first, &max_abs);
     };
+    // Between the wind and shadow stages the shadow is not defined on the
+    // CPU backend (its storage is shared, fields::Storage): 0 there.
+    if (id == fields::kShadow && s == kWind) continue;
     if (f.state && f.type == fields::Type::kUnits) {
       compare(owned_cells(want.state.units[id]), owned_cells(got.state.units[id]));
       max_abs = units_to_m_d(static_cast<units_t>(max_abs));

@@ -94,8 +94,15 @@ void CpuBackend::restore_outputs(fields::Id id) {
     }
     wind_valid_ = true;
   }
-  if (id == fields::kShadow) {
-    if (!shadow_valid_ && wind_ran_) shadow();
+  if (id == fields::kShadow && !shadow_valid_) {
+    if (shadow_of_wind_) {
+      shadow();
+    } else {
+      // Between the wind stage and the shadow stage: this step's shadow is
+      // not computed yet and the last one cannot be (its wind is gone).
+      // Defined as 0, as before the first step.
+      std::fill(spare_.data(), spare_.data() + spare_.size(), 0.0f);
+    }
     shadow_valid_ = true;
   }
 }

@@ -107,6 +107,7 @@ class CpuBackend final : public Backend {
   // Whether wind and shadow still hold the last step's values, and what
   // computed them (to compute them again).
   bool wind_valid_ = true, shadow_valid_ = true, wind_ran_ = false;
+  bool shadow_of_wind_ = false;  // the last shadow() read the wind wind_valid_ is about
   Vec2 last_a_{};
   std::vector<wind_primitives::Batch> last_batches_;
   void warp_rows(Vec2 a);  // the wind at every owned cell, from the gradients

@@ -96,6 +96,7 @@ void CpuBackend::shadow() {
     }
   }
   shadow_valid_ = true;
+  shadow_of_wind_ = true;
 }
 
 }  // namespace erg::cpu

@@ -166,6 +166,7 @@ void CpuBackend::wind(Vec2 a) {
   warp_rows(a);
   wind_valid_ = true;
   shadow_valid_ = false;
+  shadow_of_wind_ = false;
 }
 
 // Venturi and warping at every owned cell from the heights and this step's
