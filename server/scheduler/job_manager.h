@@ -69,9 +69,10 @@ struct ManagerConfig {
 };
 
 // What a running worker holds per cell of its domain, all ranks together:
-// the largest peak measured (README "Memory": 184 bytes per cell at 4096²,
-// 161 at 11776², CPU backend, snapshots and checkpoints included).
-inline constexpr std::int64_t kJobBytesPerCell = 184;
+// the largest peak measured at 4096² and beyond, with room for the part
+// that does not grow with the domain (README "Memory": 87 bytes per cell at
+// 4096², 70 a cell beyond; CPU backend, snapshots and checkpoints included).
+inline constexpr std::int64_t kJobBytesPerCell = 96;
 
 class JobManager {
  public:
