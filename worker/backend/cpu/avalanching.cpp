@@ -25,19 +25,26 @@
 // refill at all.
 // One tile refills its ghosts, a local copy, before every iteration (R = 1).
 //
-// Work is tracked in segments of 64 cells of a row. After the first
-// iteration, which visits every cell, an iteration visits only the segments
-// where something can happen: pass 1 where a height within two cells changed
-// in the last iteration (or where a donor still has f > 0), pass 2 within one
-// cell of a donor. Everywhere else the iteration is the identity, so the
-// result is exactly that of visiting every cell, at a fraction of the cost
-// once the terrain is mostly settled. Iterations stop once nothing moved and
+// Work is tracked cell by cell, in one 64-bit mask per 64-cell segment of a
+// row. After the first iteration, which visits every cell, an iteration
+// visits only the cells where something can happen: pass 1 within one cell
+// of a cell whose layer changed in the last iteration (f reads the 3 x 3
+// heights and the cell's own layer), where a donor still has f > 0 (k_c may
+// change it) and next to ghosts a refill rewrote; pass 2 within one cell of a
+// donor. Everywhere else the iteration is the identity, so the result is
+// exactly that of visiting every cell, at a fraction of the cost once the
+// terrain is mostly settled: a slip face still relaxing is a band a few
+// cells wide, and a step that settles it runs hundreds of iterations on it.
+// Each segment computes the run from its first to its last marked cell (a
+// cell recomputed without need gets the same value again), so the passes
+// keep their vectorised loops. Iterations stop once nothing moved and
 // nothing can move later: on one tile at once, with several at the end of
 // the round in which every tile has found so (results do not depend on it:
 // the skipped iterations are identities).
 #include "stages/avalanching.h"
 
 #include <algorithm>
+#include <bit>
 #include <cstdint>
 #include <limits>
 #include <utility>
@@ -51,6 +58,11 @@ namespace erg::cpu {
 namespace {
 
 constexpr int kSegment = 64;
+// Cell masks: bit b of segment (r, s) is the cell of row r - E, column
+// s * 64 + b - E (E: the widest ghost width, AvalancheSweep::widest_).
+using Mask = std::uint64_t;
+constexpr Mask kAll = ~Mask{0};
+
 constexpr units_t kUnlimited = std::numeric_limits<units_t>::max() / 4;
 
 struct Stencil {
@@ -61,15 +73,18 @@ struct Stencil {
   }
 };
 
-// Pass 1 on cells [x0, x1) of a row. Returns whether any f > 0.
+// Pass 1 on cells [x0, x1) of a row segment whose first cell is column
+// `base`. Returns the donors: the cells with f > 0 before the rare
+// correction below (which may set a donor that is stuck at this k_c to 0; it
+// stays marked, so it is visited again when k_c grows).
 // kBedrock: unlimited supply and one repose tangent for all cells.
 template <bool kBedrock>
-bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, const units_t* sand,
-                      const float* ob, float kc, const Stencil& st, int x0, int x1,
+Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, const units_t* sand,
+                      const float* ob, float kc, const Stencil& st, int base, int x0, int x1,
                       float* __restrict frac) {
   const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
   const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
-  int checks = 0, positive = 0;
+  int checks = 0;
   for (int x = x0; x < x1; ++x) {
     const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
                          h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
@@ -79,8 +94,9 @@ bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, con
     const bool wall = obstacles::is_obstacle(ob[x]);
     frac[x] = wall ? 0.0f : fr.f;
     checks += fr.check & !wall;
-    positive += (fr.f > 0.0f) & !wall;
   }
+  Mask donors = 0;
+  for (int x = x0; x < x1; ++x) donors |= static_cast<Mask>(frac[x] > 0.0f) << (x - base);
   if (checks > 0) {
     // Rare: shares that might exceed the sand present; the complete donor()
     // shrinks f until they fit.
@@ -93,7 +109,7 @@ bool fraction_segment(const float* h, const float* tan_l, float tan_l_const, con
         frac[x] = avalanching::donor(h[x], hn, t, avail, kc).f;
     }
   }
-  return positive > 0;
+  return donors;
 }
 
 // Pass 2 on cells [x0, x1) of a row: units each cell gains and loses.
@@ -126,20 +142,25 @@ bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, con
   return active > 0;
 }
 
-// Marks, in `out`, the segments within `dy` rows and one segment of a marked
-// segment of `in` (clipped at the region's edges: the region is a tile with
-// its ghosts, not a torus).
-void dilate(const std::vector<std::uint8_t>& in, std::vector<std::uint8_t>& out, int rows, int segs,
-            int dy) {
-  std::fill(out.begin(), out.end(), 0);
-  for (int y = 0; y < rows; ++y)
-    for (int s = 0; s < segs; ++s) {
-      if (!in[static_cast<size_t>(y) * segs + s]) continue;
-      for (int yy = std::max(0, y - dy); yy <= std::min(rows - 1, y + dy); ++yy) {
-        std::uint8_t* r = out.data() + static_cast<size_t>(yy) * segs;
-        for (int ss = std::max(0, s - 1); ss <= std::min(segs - 1, s + 1); ++ss) r[ss] = 1;
-      }
-    }
+// The cells of segment (r, s) within one cell (8-neighbourhood) of a marked
+// cell of `m` (clipped at the region's edges: the region is a tile with its
+// ghosts, not a torus).
+Mask dilated(const std::vector<Mask>& m, int rows, int segs, int r, int s) {
+  Mask row[3] = {0, 0, 0};  // columns s - 1, s, s + 1, over rows r - 1 .. r + 1
+  for (int rr = std::max(0, r - 1); rr <= std::min(rows - 1, r + 1); ++rr) {
+    const Mask* w = m.data() + static_cast<size_t>(rr) * segs;
+    if (s > 0) row[0] |= w[s - 1];
+    row[1] |= w[s];
+    if (s + 1 < segs) row[2] |= w[s + 1];
+  }
+  return row[1] | (row[1] << 1) | (row[1] >> 1) | (row[0] >> 63) | (row[2] << 63);
+}
+
+// The bits of cells [x0, x1) of a segment whose first cell is column `base`.
+Mask span_bits(int base, int x0, int x1) {
+  const int lo = x0 - base, hi = x1 - base;  // 0 <= lo < hi <= 64
+  const Mask upper = hi >= kSegment ? kAll : (Mask{1} << hi) - 1;
+  return upper & ~((Mask{1} << lo) - 1);
 }
 
 // The layers an avalanche reads and moves, and its work arrays
@@ -178,9 +199,8 @@ class AvalancheSweep {
         rows_(g.ny + 2 * widest_),
         segs_((g.nx + 2 * widest_ + kSegment - 1) / kSegment),
         // Segment (r, s) covers row r - E, columns [s * 64 - E, (s + 1) * 64 - E).
-        visit_(static_cast<size_t>(rows_) * segs_, 1),
-        positive_(visit_.size(), 0),
-        exchange_(visit_.size(), 0),
+        visit_(static_cast<size_t>(rows_) * segs_, kAll),
+        donors_(visit_.size(), 0),
         changed_(visit_.size(), 0),
         target_(bedrock ? f.bedrock : f.sand) {}
 
@@ -237,13 +257,10 @@ class AvalancheSweep {
           }
           continue;
         }
-        visit_ = positive_;
-        if (m_.avalanche_everywhere) std::fill(visit_.begin(), visit_.end(), 1);
-        continue;
+        continue;  // the next pass 1 visits the donors again
       }
       ++moved_iterations;
       new_heights(grow2);
-      next_visit();
     }
     if (settled) *settled = no_donors;
     // At the cap: still moving if the last iteration moved something on any
@@ -283,17 +300,30 @@ class AvalancheSweep {
       heights(ny, ny + e_, -e_, nx + e_);
       heights(0, ny, -e_, 0);
       heights(0, ny, nx, nx + e_);
-      for (int r = 0; r < rows_; ++r)
+      // The refilled ghosts, and the owned cells that read them (within one
+      // cell; two, to be generous).
+      constexpr int kIn = 2;
+      for (int r = 0; r < rows_; ++r) {
+        const int y = r - widest_;
+        const bool edge_row = y < kIn || y >= ny - kIn;
         for (int s = 0; s < segs_; ++s) {
-          const int y = r - widest_, x0 = s * kSegment - widest_, x1 = x0 + kSegment;
-          const bool near_edge = y < e_ + 2 || y >= ny - e_ - 2 || x0 < e_ + 2 || x1 > nx - e_ - 2;
-          if (near_edge) visit_[static_cast<size_t>(r) * segs_ + s] = 1;
+          const int base = s * kSegment - widest_;
+          Mask& v = visit_[static_cast<size_t>(r) * segs_ + s];
+          if (edge_row) {
+            v = kAll;
+            continue;
+          }
+          // Columns [base, base + 64) against the bands x < kIn and x >= nx - kIn.
+          if (base < kIn) v |= span_bits(base, base, std::min(kIn, base + kSegment));
+          if (base + kSegment > nx - kIn)
+            v |= span_bits(base, std::max(nx - kIn, base), base + kSegment);
         }
+      }
     } else {
       // A wider round (the rest of the iterations in one, several tiles):
       // the other layer's ghosts too (refilled above), and every cell.
       heights(-e_, ny + e_, -e_, nx + e_);
-      std::fill(visit_.begin(), visit_.end(), 1);
+      std::fill(visit_.begin(), visit_.end(), kAll);
     }
   }
 
@@ -303,8 +333,25 @@ class AvalancheSweep {
             std::min((s + 1) * kSegment - widest_, g_.nx + grow)};
   }
 
-  // Pass 1: fractions where heights may have changed, or donors remain, on
-  // the tile grown by `grow1`. Whether any f > 0.
+  // Calls run(x0, x1) on the columns from the first to the last cell of `m`
+  // in segment s, clipped to the tile grown by `grow` (if any). One call over
+  // the whole span, unmarked cells included, measured faster than one per
+  // run of marked cells: the loops stay long enough to vectorise.
+  template <class Run>
+  void for_span(Mask m, int s, int grow, Run&& run) const {
+    const auto [c0, c1] = columns(s, grow);
+    if (c0 >= c1) return;
+    const int base = s * kSegment - widest_;
+    m &= span_bits(base, c0, c1);
+    if (m != 0) run(base + std::countr_zero(m), base + kSegment - std::countl_zero(m));
+  }
+
+  // Pass 1 on the tile grown by `grow1`, where f may differ from the last
+  // time it was computed: within one cell of a cell whose layer changed in
+  // the last pass 2 (f reads the 3 x 3 heights and its own layer), at the
+  // donors of the last pass 1 (k_c may change their f), and at the cells
+  // marked in visit_ (every cell at first, ghosts a refill rewrote), which
+  // it clears. Whether any f > 0.
   bool fractions(float kc, int grow1) {
     const int ny = g_.ny;
     const float tan_b = m_.tan_l_bedrock;
@@ -314,17 +361,24 @@ class AvalancheSweep {
       const int y = r - widest_;
       for (int s = 0; s < segs_; ++s) {
         const size_t k = static_cast<size_t>(r) * segs_ + s;
-        positive_[k] = 0;
-        if (!visit_[k] || y < -grow1 || y >= ny + grow1) continue;
-        const auto [x0, x1] = columns(s, grow1);
-        if (x0 >= x1) continue;
-        positive_[k] =
-            bedrock_
-                ? fraction_segment<true>(f_.h.row(y), nullptr, tan_b, nullptr, f_.obstacles.row(y),
-                                         kc, st_, x0, x1, f_.frac.row(y))
-                : fraction_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f, f_.sand.row(y),
-                                          f_.obstacles.row(y), kc, st_, x0, x1, f_.frac.row(y));
-        any_positive = any_positive || positive_[k];
+        const Mask visit = m_.avalanche_everywhere
+                               ? kAll
+                               : visit_[k] | donors_[k] | dilated(changed_, rows_, segs_, r, s);
+        visit_[k] = 0;
+        donors_[k] = 0;
+        if (!visit || y < -grow1 || y >= ny + grow1) continue;
+        const int base = s * kSegment - widest_;
+        Mask donors = 0;
+        for_span(visit, s, grow1, [&](int x0, int x1) {
+          donors |= bedrock_ ? fraction_segment<true>(f_.h.row(y), nullptr, tan_b, nullptr,
+                                                      f_.obstacles.row(y), kc, st_, base, x0, x1,
+                                                      f_.frac.row(y))
+                             : fraction_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f,
+                                                       f_.sand.row(y), f_.obstacles.row(y), kc, st_,
+                                                       base, x0, x1, f_.frac.row(y));
+        });
+        donors_[k] = donors;
+        any_positive = any_positive || donors != 0;
       }
     }
     return any_positive;
@@ -336,8 +390,6 @@ class AvalancheSweep {
   bool exchanges(int grow2) {
     const int ny = g_.ny;
     const float tan_b = m_.tan_l_bedrock;
-    dilate(positive_, exchange_, rows_, segs_, 1);
-    if (m_.avalanche_everywhere) std::fill(exchange_.begin(), exchange_.end(), 1);
     bool any_change = false;
 #pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_change)
     for (int r = 0; r < rows_; ++r) {
@@ -346,37 +398,48 @@ class AvalancheSweep {
       for (int s = 0; s < segs_; ++s) {
         const size_t k = static_cast<size_t>(r) * segs_ + s;
         changed_[k] = 0;
-        if (!exchange_[k] || y < -grow2 || y >= ny + grow2) continue;
-        const auto [x0, x1] = columns(s, grow2);
-        if (x0 >= x1) continue;
-        const bool active = bedrock_
-                                ? exchange_segment<true>(f_.h.row(y), nullptr, tan_b,
-                                                         f_.frac.row(y), st_, x0, x1, gain, loss)
-                                : exchange_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f,
-                                                          f_.frac.row(y), st_, x0, x1, gain, loss);
-        if (!active) continue;
-        apply(y, x0, x1, gain, loss);
-        changed_[k] = 1;
-        any_change = true;
+        if (y < -grow2 || y >= ny + grow2) continue;
+        const Mask near_donor =
+            m_.avalanche_everywhere ? kAll : dilated(donors_, rows_, segs_, r, s);
+        const int base = s * kSegment - widest_;
+        Mask changed = 0;
+        for_span(near_donor, s, grow2, [&](int x0, int x1) {
+          const bool active =
+              bedrock_ ? exchange_segment<true>(f_.h.row(y), nullptr, tan_b, f_.frac.row(y), st_,
+                                                x0, x1, gain, loss)
+                       : exchange_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f, f_.frac.row(y),
+                                                 st_, x0, x1, gain, loss);
+          if (!active) return;
+          changed |= apply(y, x0, x1, base, gain, loss);
+          any_change = true;
+        });
+        changed_[k] = changed;
       }
     }
     return any_change;
   }
 
   // Pass 2 reads only heights and fractions, so the layers can be updated
-  // in place.
-  void apply(int y, int x0, int x1, const units_t* gain, const units_t* loss) {
+  // in place. Returns the cells whose avalanching height changed (segment
+  // whose first cell is column `base`).
+  Mask apply(int y, int x0, int x1, int base, const units_t* gain, const units_t* loss) {
     units_t* t = target_.row(y);
     units_t* sd = f_.sand.row(y);
+    Mask changed = 0;
     if (bedrock_ && m_.bedrock_to_sand) {
       // Fallen rock breaks into sand where it lands [N24 3.8].
       for (int x = x0; x < x1; ++x) {
         t[x] -= loss[x - x0];
         sd[x] += gain[x - x0];
+        changed |= static_cast<Mask>(loss[x - x0] != 0) << (x - base);
       }
     } else {
-      for (int x = x0; x < x1; ++x) t[x] += gain[x - x0] - loss[x - x0];
+      for (int x = x0; x < x1; ++x) {
+        t[x] += gain[x - x0] - loss[x - x0];
+        changed |= static_cast<Mask>(gain[x - x0] != loss[x - x0]) << (x - base);
+      }
     }
+    return changed;
   }
 
   bool larger_kc_later(int it, float kc) const {
@@ -391,19 +454,11 @@ class AvalancheSweep {
     for (int r = 0; r < rows_; ++r) {
       const int y = r - widest_;
       for (int s = 0; s < segs_; ++s) {
-        if (!changed_[static_cast<size_t>(r) * segs_ + s]) continue;
-        const auto [x0, x1] = columns(s, grow2);
-        height_row(y, x0, x1);
+        const Mask c = changed_[static_cast<size_t>(r) * segs_ + s];
+        if (c == 0) continue;
+        for_span(c, s, grow2, [&](int x0, int x1) { height_row(y, x0, x1); });
       }
     }
-  }
-
-  // Next pass 1: within two cells of a change, and wherever donors remain
-  // (k_c may change their f).
-  void next_visit() {
-    dilate(changed_, visit_, rows_, segs_, 2);
-    for (size_t k = 0; k < visit_.size(); ++k)
-      visit_[k] |= positive_[k] | static_cast<std::uint8_t>(m_.avalanche_everywhere);
   }
 
   const Model& m_;
@@ -416,7 +471,7 @@ class AvalancheSweep {
   const int iterations_;
   const Stencil st_;
   const int widest_, rows_, segs_;
-  std::vector<std::uint8_t> visit_, positive_, exchange_, changed_;
+  std::vector<Mask> visit_, donors_, changed_;
   Field<units_t>& target_;  // the layer that moves
   AvalancheRounds::Round round_;
   int e_ = 0;  // the round's ghost width: 2 R
