@@ -274,6 +274,42 @@ TEST(Exactness, SparseAvalanchingEqualsVisitingEveryCell) {
   }
 }
 
+// The same while a steep column settles over hundreds of iterations a step,
+// where the cell masks matter most (a few slip-face cells move in each of
+// the later iterations): one tile (its ghosts refilled before every
+// iteration) and several tiles' rounds (a first round of 4, then rounds of
+// 46 whose ghosts are refilled at each round start) both give the bits and
+// the iteration counts of visiting every cell, with the defaults.
+TEST(Exactness, SparseSettlingEqualsVisitingEveryCell) {
+  const std::string column = R"({
+    "domain": {"nx": 80, "ny": 64, "cell_size_m": 0.5},
+    "layers": {"sand": {"piles": [{"x_m": 20, "y_m": 16, "height": 10, "radius_m": 6,
+                                   "shape": "CYLINDER"}]}},
+    "wind": {"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.31, "direction_deg": 30}},
+    "transport": "STOCHASTIC", "seed": 3, "model": {"slab_m": 0.05, "reptation_k": 0.2},
+    "run": {"steps": 3}})";
+  for (const AvalancheRounds rounds : {kOneTileRounds, kTiledRounds}) {
+    auto run = [&](bool everywhere) {
+      Placement place;
+      place.rounds = rounds;
+      RunOptions opt = cpu_threads(2);
+      opt.avalanche_everywhere = everywhere;
+      Simulation sim(spec_from(column), ".", opt, place);
+      for (int s = 0; s < 3; ++s) sim.step();
+      return std::make_pair(sim.state(), sim.times());
+    };
+    const std::string what =
+        "rounds of " + std::to_string(rounds.length) + " then " + std::to_string(rounds.later);
+    const auto [sparse, ts] = run(false);
+    const auto [everywhere, te] = run(true);
+    expect_bitwise_equal(sparse, everywhere, "sparse vs everywhere, " + what);
+    EXPECT_EQ(ts.avalanche_iterations, te.avalanche_iterations) << what;
+    EXPECT_EQ(ts.avalanche_capped_steps, 0) << what;
+    EXPECT_GT(ts.avalanche_most, kTiledRounds.length + 2 * kTiledRounds.later)
+        << what << ": settling too short to need several later rounds";
+  }
+}
+
 // Ghost-zone rounds (backend/cpu/avalanching.cpp) are execution only: a
 // refill before every iteration (one tile), rounds of 3, a first round of 4
 // then rounds of 46 (several tiles; here the rest, 21), a first round of 4

@@ -58,6 +58,7 @@ namespace erg::cpu {
 namespace {
 
 constexpr int kSegment = 64;
+constexpr int kParallelSegments = 16;  // parallel(): about 1000 cells
 // Cell masks: bit b of segment (r, s) is the cell of row r - E, column
 // s * 64 + b - E (E: the widest ghost width, AvalancheSweep::widest_).
 using Mask = std::uint64_t;
@@ -289,11 +290,17 @@ class AvalancheSweep {
 
   // A new round at iteration `it`: refill the ghosts of the layer that
   // moved, recompute their heights, and revisit every cell that reads them.
+  // One tile whose cells within the ghost width of its edges have not
+  // changed since the last refill skips it: the local copy would write the
+  // values the ghosts hold.
   void next_round(int it) {
     const int nx = g_.nx, ny = g_.ny;
     round_ = m_.rounds.of(it, iterations_);
     const int e_last = e_;
     e_ = 2 * round_.length;
+    const bool unchanged = ex_.tiles() == 1 && e_ == e_last && !edge_changed_;
+    edge_changed_ = false;
+    if (unchanged) return;
     refill_round(refill_, bedrock_, e_, e_last);
     if (e_ <= e_last) {
       heights(-e_, 0, -e_, nx + e_);
@@ -307,16 +314,9 @@ class AvalancheSweep {
         const int y = r - widest_;
         const bool edge_row = y < kIn || y >= ny - kIn;
         for (int s = 0; s < segs_; ++s) {
-          const int base = s * kSegment - widest_;
-          Mask& v = visit_[static_cast<size_t>(r) * segs_ + s];
-          if (edge_row) {
-            v = kAll;
-            continue;
-          }
-          // Columns [base, base + 64) against the bands x < kIn and x >= nx - kIn.
-          if (base < kIn) v |= span_bits(base, base, std::min(kIn, base + kSegment));
-          if (base + kSegment > nx - kIn)
-            v |= span_bits(base, std::max(nx - kIn, base), base + kSegment);
+          const Mask band = edge_row ? kAll : edge_columns(s, kIn);
+          visit_[static_cast<size_t>(r) * segs_ + s] |= band;
+          busy_ += band != 0;
         }
       }
     } else {
@@ -324,7 +324,25 @@ class AvalancheSweep {
       // the other layer's ghosts too (refilled above), and every cell.
       heights(-e_, ny + e_, -e_, nx + e_);
       std::fill(visit_.begin(), visit_.end(), kAll);
+      busy_ = static_cast<int>(visit_.size());
     }
+  }
+
+  // The cells of segment s in columns x < w or x >= nx - w.
+  Mask edge_columns(int s, int w) const {
+    const int base = s * kSegment - widest_;
+    Mask m = 0;
+    if (base < w) m |= span_bits(base, base, std::min(w, base + kSegment));
+    if (base + kSegment > g_.nx - w)
+      m |= span_bits(base, std::max(g_.nx - w, base), base + kSegment);
+    return m;
+  }
+
+  // Whether a pass with `segments` segments of work runs on several
+  // threads: a few hundred cells (most iterations of a long settle) take
+  // less time than waking the threads.
+  bool parallel(int segments) const {
+    return threads_ > 1 && segments >= kParallelSegments;
   }
 
   // Columns [x0, x1) of segment s clipped to the tile grown by `grow`.
@@ -356,7 +374,9 @@ class AvalancheSweep {
     const int ny = g_.ny;
     const float tan_b = m_.tan_l_bedrock;
     bool any_positive = false;
-#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_positive)
+    int donor_segments = 0;
+#pragma omp parallel for num_threads(threads_) if (parallel(busy_)) schedule(dynamic, 4) \
+    reduction(|| : any_positive) reduction(+ : donor_segments)
     for (int r = 0; r < rows_; ++r) {
       const int y = r - widest_;
       for (int s = 0; s < segs_; ++s) {
@@ -379,8 +399,11 @@ class AvalancheSweep {
         });
         donors_[k] = donors;
         any_positive = any_positive || donors != 0;
+        donor_segments += donors != 0;
       }
     }
+    donor_segments_ = donor_segments;
+    busy_ = m_.avalanche_everywhere ? static_cast<int>(visit_.size()) : 0;
     return any_positive;
   }
 
@@ -390,8 +413,11 @@ class AvalancheSweep {
   bool exchanges(int grow2) {
     const int ny = g_.ny;
     const float tan_b = m_.tan_l_bedrock;
-    bool any_change = false;
-#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4) reduction(|| : any_change)
+    bool any_change = false, edge_change = false;
+    int changed_segments = 0;
+    const int fill = e_ + 1;  // refill_round fills the ghosts e + 1 wide
+#pragma omp parallel for num_threads(threads_) if (parallel(3 * donor_segments_)) \
+    schedule(dynamic, 4) reduction(|| : any_change, edge_change) reduction(+ : changed_segments)
     for (int r = 0; r < rows_; ++r) {
       const int y = r - widest_;
       units_t gain[kSegment], loss[kSegment];
@@ -414,8 +440,18 @@ class AvalancheSweep {
           any_change = true;
         });
         changed_[k] = changed;
+        if (changed == 0) continue;
+        ++changed_segments;
+        // A change within the refilled width of an edge, which a one-tile
+        // refill copies into the ghosts.
+        edge_change =
+            edge_change || y < fill || y >= ny - fill || (changed & edge_columns(s, fill)) != 0;
       }
     }
+    changed_segments_ = changed_segments;
+    edge_changed_ = edge_changed_ || edge_change;
+    // The next pass 1 visits within one cell of the changes and the donors.
+    busy_ += 3 * changed_segments + donor_segments_;
     return any_change;
   }
 
@@ -450,7 +486,7 @@ class AvalancheSweep {
 
   // New heights where layers changed (after pass 2: it read the old ones).
   void new_heights(int grow2) {
-#pragma omp parallel for num_threads(threads_) schedule(dynamic, 4)
+#pragma omp parallel for num_threads(threads_) if (parallel(changed_segments_)) schedule(dynamic, 4)
     for (int r = 0; r < rows_; ++r) {
       const int y = r - widest_;
       for (int s = 0; s < segs_; ++s) {
@@ -475,6 +511,10 @@ class AvalancheSweep {
   Field<units_t>& target_;  // the layer that moves
   AvalancheRounds::Round round_;
   int e_ = 0;  // the round's ghost width: 2 R
+  // Segments with work, counted by the last passes, for parallel(): those
+  // the next pass 1 visits (every one at first), the last donors and changes.
+  int busy_ = std::numeric_limits<int>::max(), donor_segments_ = 0, changed_segments_ = 0;
+  bool edge_changed_ = false;  // a change near an edge since the last refill
 };
 
 }  // namespace
