@@ -46,7 +46,7 @@ const std::map<std::string, double> kModelDefaults = {
     {"reptation_k", 1},
     {"repose_deg", 33},
     {"repose_vegetated_deg", 45},
-    {"avalanche_iterations", 50},
+    {"avalanche_iterations", 10000},
     {"avalanche_kc", 1},
     {"avalanche_kc_damped", 0.5},
     {"bedrock_repose_deg", 68},
@@ -66,7 +66,7 @@ TEST(Defaults, ModelParametersGetTheirDocumentedDefaults) {
   EXPECT_EQ(m.repose_deg(), 33);
   EXPECT_EQ(m.slab_m(), 0.1);
   EXPECT_EQ(m.time_step_days(), 10);
-  EXPECT_EQ(m.avalanche_iterations(), 50);
+  EXPECT_EQ(m.avalanche_iterations(), 10000);
   EXPECT_EQ(m.max_hop_m(), 8);
   EXPECT_EQ(m.deposit_on_sand(), 0.6);
   EXPECT_EQ(m.deposit_on_bedrock(), 0.4);
