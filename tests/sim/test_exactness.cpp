@@ -204,6 +204,17 @@ TEST_P(ExactnessObstacles, ConservedNoSandInsideAndThreadInvariant) {
 INSTANTIATE_TEST_SUITE_P(Modes, ExactnessObstacles, ::testing::Values("EXPECTED", "STOCHASTIC"),
                          [](const auto& info) { return info.param; });
 
+// A 10 m sand column at 0.5 m cells in a wind, with the defaults.
+std::string settling_column_job() {
+  return R"({
+    "domain": {"nx": 80, "ny": 64, "cell_size_m": 0.5},
+    "layers": {"sand": {"piles": [{"x_m": 20, "y_m": 16, "height": 10, "radius_m": 6,
+                                   "shape": "CYLINDER"}]}},
+    "wind": {"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.31, "direction_deg": 30}},
+    "transport": "STOCHASTIC", "seed": 3, "model": {"slab_m": 0.05, "reptation_k": 0.2},
+    "run": {"steps": 4}})";
+}
+
 // Avalanching iterates until settled (docs/design.md, "Avalanching until
 // settled"): a 10 m column at 0.5 m cells needs hundreds of iterations in
 // its first steps. The stop is exact (an iteration finds no donor or moves
@@ -211,13 +222,7 @@ INSTANTIATE_TEST_SUITE_P(Modes, ExactnessObstacles, ::testing::Values("EXPECTED"
 // and the rounds of one tile and of several (a first round of 4 then rounds
 // of 46; of 4 then 7), give the same bits and the same iteration counts.
 TEST(Exactness, SettlingIsThreadAndRoundInvariant) {
-  const std::string column = R"({
-    "domain": {"nx": 80, "ny": 64, "cell_size_m": 0.5},
-    "layers": {"sand": {"piles": [{"x_m": 20, "y_m": 16, "height": 10, "radius_m": 6,
-                                   "shape": "CYLINDER"}]}},
-    "wind": {"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.31, "direction_deg": 30}},
-    "transport": "STOCHASTIC", "seed": 3, "model": {"slab_m": 0.05, "reptation_k": 0.2, "avalanche_iterations": 10000},
-    "run": {"steps": 4}})";
+  const std::string column = settling_column_job();
   auto run = [&](int threads, AvalancheRounds rounds) {
     Placement place;
     place.rounds = rounds;
@@ -281,13 +286,7 @@ TEST(Exactness, SparseAvalanchingEqualsVisitingEveryCell) {
 // 46 whose ghosts are refilled at each round start) both give the bits and
 // the iteration counts of visiting every cell, with the defaults.
 TEST(Exactness, SparseSettlingEqualsVisitingEveryCell) {
-  const std::string column = R"({
-    "domain": {"nx": 80, "ny": 64, "cell_size_m": 0.5},
-    "layers": {"sand": {"piles": [{"x_m": 20, "y_m": 16, "height": 10, "radius_m": 6,
-                                   "shape": "CYLINDER"}]}},
-    "wind": {"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.31, "direction_deg": 30}},
-    "transport": "STOCHASTIC", "seed": 3, "model": {"slab_m": 0.05, "reptation_k": 0.2},
-    "run": {"steps": 3}})";
+  const std::string column = settling_column_job();
   for (const AvalancheRounds rounds : {kOneTileRounds, kTiledRounds}) {
     auto run = [&](bool everywhere) {
       Placement place;
