@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <random>
 #include <vector>
@@ -164,7 +165,7 @@ TEST(CpuFastPaths, VectorisedExpectedScatterEqualsPlainLanding) {
   const std::vector<units_t> plain = scatter_plain(a, p, false);
   std::vector<units_t> fast(a.g.size(), 0);
   std::vector<long> target(static_cast<size_t>(a.g.nx));
-  std::vector<units_t> parts(4 * static_cast<size_t>(a.g.nx));
+  std::vector<units_t> parts(saltation::kLandingCells * static_cast<size_t>(a.g.nx));
   units_t owned_total = 0;  // what is in flight (scatter_plain took a copy)
   for (int y = 0; y < a.g.ny; ++y)
     for (int x = 0; x < a.g.nx; ++x) owned_total += a.air[a.g.at(x, y)];
@@ -179,6 +180,87 @@ TEST(CpuFastPaths, VectorisedExpectedScatterEqualsPlainLanding) {
   for (units_t v : plain) landed_total += v;
   EXPECT_EQ(landed_total, owned_total);  // every owned unit lands somewhere
   EXPECT_GT(owned_total, 0);
+}
+
+// The landing kernel (stages/saltation.h, spread()) has the same mean and
+// covariance whatever the wind's angle to the grid: the landing point, and
+// 1/4 cell^2 along and across the wind, for the expected split of one hop
+// and for the stochastic mode's draws over many cells. (The bilinear split
+// it replaced had 0 across the wind at 0 degrees, 0.14 at 23 degrees.)
+struct Moments {
+  double mx = 0, my = 0, along = 0, across = 0, cross = 0;
+};
+Moments landing_moments(const std::vector<units_t>& landed, const TileGeom& g, int sx, int sy,
+                        double deg) {
+  const double c = std::cos(deg * M_PI / 180.0), s = std::sin(deg * M_PI / 180.0);
+  double total = 0;
+  Moments m;
+  for (int y = -g.halo; y < g.ny + g.halo; ++y)
+    for (int x = -g.halo; x < g.nx + g.halo; ++x) {
+      const double w = static_cast<double>(landed[g.at(x, y)]);
+      total += w;
+      m.mx += w * (x - sx);
+      m.my += w * (y - sy);
+    }
+  m.mx /= total;
+  m.my /= total;
+  for (int y = -g.halo; y < g.ny + g.halo; ++y)
+    for (int x = -g.halo; x < g.nx + g.halo; ++x) {
+      const double w = static_cast<double>(landed[g.at(x, y)]) / total;
+      const double dx = x - sx - m.mx, dy = y - sy - m.my;
+      const double a = dx * c + dy * s, b = -dx * s + dy * c;
+      m.along += w * a * a;
+      m.across += w * b * b;
+      m.cross += w * a * b;
+    }
+  return m;
+}
+
+TEST(CpuFastPaths, LandingSpreadIsTheSameAtEveryWindAngle) {
+  for (const bool stochastic : {false, true}) {
+    const saltation::Params p = saltation_params(stochastic);
+    const double hop = 5.0 * 1.3 / 2.0;  // |w| hop_time_s in 2 m cells: 3.25
+    for (const double deg : {0.0, 1.79, 23.0, 37.0, 45.0, 161.0}) {
+      const float wx = static_cast<float>(5.0 * std::cos(deg * M_PI / 180.0));
+      const float wy = static_cast<float>(5.0 * std::sin(deg * M_PI / 180.0));
+      // Expected: one cell's hop; stochastic: every cell of a 16 x 16 block
+      // (each draws its own cell), moments about each source.
+      const int n = stochastic ? 16 : 1;
+      TileGeom g = tile(64, 64, 8);
+      std::vector<units_t> landed(g.size(), 0);
+      double mx = 0, my = 0, along = 0, across = 0, cross = 0;
+      for (int y = 24; y < 24 + n; ++y)
+        for (int x = 24; x < 24 + n; ++x) {
+          std::vector<units_t> one(g.size(), 0), air(static_cast<size_t>(g.nx), 0);
+          std::vector<float> rx(static_cast<size_t>(g.nx), wx), ry(static_cast<size_t>(g.nx), wy);
+          air[static_cast<size_t>(x)] = units_t{1} << 40;
+          cpu::scatter_row(air.data(), rx.data(), ry.data(), g, y, 7, 3, p, false, nullptr,
+                           one.data());
+          const Moments m = landing_moments(one, g, x, y, deg);
+          mx += m.mx / (n * n);
+          my += m.my / (n * n);
+          if (stochastic) {  // moments of the draws about the hop's end
+            const double ex = hop * std::cos(deg * M_PI / 180.0) - m.mx;
+            const double ey = hop * std::sin(deg * M_PI / 180.0) - m.my;
+            const double c = std::cos(deg * M_PI / 180.0), s = std::sin(deg * M_PI / 180.0);
+            const double a = ex * c + ey * s, b = -ex * s + ey * c;
+            along += a * a / (n * n);
+            across += b * b / (n * n);
+            cross += a * b / (n * n);
+          } else {
+            along = m.along;
+            across = m.across;
+            cross = m.cross;
+          }
+        }
+      const double tol = stochastic ? 0.07 : 1e-6;  // 256 draws: the sampling error
+      EXPECT_NEAR(mx, hop * std::cos(deg * M_PI / 180.0), stochastic ? 0.08 : 1e-6) << deg;
+      EXPECT_NEAR(my, hop * std::sin(deg * M_PI / 180.0), stochastic ? 0.08 : 1e-6) << deg;
+      EXPECT_NEAR(along, 0.25, tol) << stochastic << " " << deg;
+      EXPECT_NEAR(across, 0.25, tol) << stochastic << " " << deg;
+      EXPECT_NEAR(cross, 0.0, tol) << stochastic << " " << deg;
+    }
+  }
 }
 
 // Without an obstacle in reach the obstacle walk lands every unit where the

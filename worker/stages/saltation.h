@@ -2,12 +2,11 @@
 // Saltation with abrasion ([P19] 5.1-5.2, [N24] 3.6), per cell.
 //
 // Each step: (1) lift sand into the airborne slab buffer; (2) advect every
-// airborne amount one hop downwind, split bilinearly over the four cells
-// around the landing point (a scatter of integer units: any order gives the
-// same sums; ghost contributions are added back to their owners); (3) at each
-// cell a fraction beta of what landed is deposited and the rest bounces and
-// stays airborne for the next step; bounces over thin sand abrade bedrock into
-// sand. What landed drives reptation.
+// airborne amount one hop downwind, split over the 3 x 3 cells around the
+// landing point by a kernel of the same spread at every wind angle (spread()) (a scatter of integer
+// units: any order gives the same sums; ghost contributions are added back to their owners); (3) at
+// each cell a fraction beta of what landed is deposited and the rest bounces and stays airborne for
+// the next step; bounces over thin sand abrade bedrock into sand. What landed drives reptation.
 //
 // Two transport modes share these functions: EXPECTED moves the expected
 // value of every event [N24]; STOCHASTIC moves whole slabs with the
@@ -95,8 +94,8 @@ ERG_HD units_t lift_stochastic(units_t sand, float shadow, float v, float wind_s
 // in the physical modes always max_hop_m (d0 of [P19 5.1]), the direction
 // from w (hop lengths do not depend on u*: Creyssels et al. 2009).
 struct Landing {
-  int x0, y0;    // lower-left of the four receiving cells
-  float fx, fy;  // bilinear weights towards x0 + 1, y0 + 1
+  int x0, y0;    // the cell the landing point is in
+  float fx, fy;  // the landing point's fraction past x0, y0 (spread())
 };
 ERG_HD Landing landing(int x, int y, Vec2 w, const Params& p) {
   const float speed = length(w);
@@ -112,27 +111,50 @@ ERG_HD Landing landing(int x, int y, Vec2 w, const Params& p) {
   return {x + static_cast<int>(fx), y + static_cast<int>(fy), dx - fx, dy - fy};
 }
 
-// Exact bilinear split of `a` units: q[0..3] for (x0,y0), (x0+1,y0),
-// (x0,y0+1), (x0+1,y0+1); the parts sum to a and are never negative.
-ERG_HD void split_bilinear(units_t a, float fx, float fy, units_t q[4]) {
+// The landing kernel: where around the landing point (x0 + fx, y0 + fy) a
+// hop's sand comes down. Per axis, three cells centred on the cell nearest
+// to the landing point, with weights whose mean is the landing point and
+// whose variance is `var` (cells^2) whatever the fraction f; the two axes
+// are independent, so the kernel's covariance is var * I: the same at every
+// angle of the wind to the grid. (The bilinear split it replaces has the
+// variance f (1 - f) per axis: 0 when a hop ends on a cell row, 1/4 halfway,
+// so the lattice diffused sand across the wind by an amount set by the
+// wind's angle to the grid; docs/dune-forms.md.) Mean and variance fix the
+// three weights: w(-1) = (s - m) / 2, w(0) = 1 - s, w(+1) = (s + m) / 2 with
+// m the offset from the nearest cell (|m| <= 1/2) and s = var + m^2; all
+// are >= 0 for 1/4 <= var <= 3/4 (1/4: the smallest that the lattice
+// allows at every fraction, the bilinear split's at f = 1/2).
+constexpr int kLandingCells = 9;      // 3 x 3
+constexpr float kLandingVar = 0.25f;  // cells^2 per axis: the smallest the lattice allows
+struct Spread {
+  int lo;      // first of the three cells, relative to x0 (-1 or 0)
+  float w[3];  // weights of cells lo, lo + 1, lo + 2; they sum to 1
+};
+ERG_HD Spread spread(float f, float var = kLandingVar) {
+  const bool up = f >= 0.5f;
+  const float m = up ? f - 1.0f : f;  // from the nearest cell, in [-1/2, 1/2)
+  const float s = var + m * m;        // E[offset^2] about the nearest cell
+  // (Clamped at 0: at |m| = 1/2 and var = 1/4 rounding may leave -1e-8.)
+  return {up ? 0 : -1,
+          {max_of(0.5f * (s - m), 0.0f), max_of(1.0f - s, 0.0f), max_of(0.5f * (s + m), 0.0f)}};
+}
+// Exact split of `a` units over the 3 x 3 cells of the kernel: q[i + 3 j]
+// for cell (x0 + sx.lo + i, y0 + sy.lo + j); the parts sum to a and are
+// never negative (the rounding's remainder goes to the centre).
+ERG_HD void split_spread(units_t a, const Spread& sx, const Spread& sy, units_t q[kLandingCells]) {
   const float af = static_cast<float>(a);
   units_t rest = a;
-  q[0] = min_of(floor_units(af * ((1.0f - fx) * (1.0f - fy))), rest);
-  rest -= q[0];
-  q[1] = min_of(floor_units(af * (fx * (1.0f - fy))), rest);
-  rest -= q[1];
-  q[2] = min_of(floor_units(af * ((1.0f - fx) * fy)), rest);
-  rest -= q[2];
-  q[3] = rest;
+  for (int k = 0; k < kLandingCells; ++k) {
+    if (k == 4) continue;
+    q[k] = min_of(floor_units(af * (sx.w[k % 3] * sy.w[k / 3])), rest);
+    rest -= q[k];
+  }
+  q[4] = rest;
 }
-// Stochastic: the whole amount lands in one of the four cells, chosen with
-// the bilinear weights as probabilities.
-ERG_HD int pick_corner(float fx, float fy, float u) {
-  const float w0 = (1.0f - fx) * (1.0f - fy), w1 = fx * (1.0f - fy), w2 = (1.0f - fx) * fy;
-  if (u < w0) return 0;
-  if (u < w0 + w1) return 1;
-  if (u < w0 + w1 + w2) return 2;
-  return 3;
+// Stochastic: the whole amount lands in one cell, drawn per axis with the
+// kernel's weights as probabilities (u: one uniform draw per axis).
+ERG_HD int pick_spread(const Spread& s, float u) {
+  return s.lo + (u < s.w[0] ? 0 : (u < s.w[0] + s.w[1] ? 1 : 2));
 }
 
 // (3) Deposition, bounce and abrasion at a cell where `landed` units arrived.

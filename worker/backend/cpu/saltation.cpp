@@ -95,7 +95,7 @@ void CpuBackend::saltation_hop(std::int64_t step) {
     for (int bi = parity; bi < nbands; bi += 2) {
       const int y_begin = bi * g_.ny / nbands, y_end = (bi + 1) * g_.ny / nbands;
       std::vector<long> target(static_cast<size_t>(g_.nx));
-      std::vector<units_t> parts(4 * static_cast<size_t>(g_.nx));
+      std::vector<units_t> parts(saltation::kLandingCells * static_cast<size_t>(g_.nx));
       for (int y = y_begin; y < y_end; ++y) {
         if (any_obstacles_ || p.stochastic) {
           scatter_row(f_.airborne.row(y), f_.wind_x.row(y), f_.wind_y.row(y), g_, y, seed, ustep, p,

@@ -2,7 +2,7 @@
 // The scatter of saltation (stages/saltation.h step 2) along one row on the
 // CPU: the plain path, stages/hop_landing.h cell by cell, and the fast path
 // of the expected mode without obstacles in reach, which computes every
-// landing point and split in a vectorised pass and adds them in a scalar one.
+// landing point and kernel split in a vectorised pass and adds them in a scalar one.
 // tests/sim/test_cpu_fast_paths.cpp proves the two give the same bits.
 #pragma once
 
@@ -26,7 +26,9 @@ inline void scatter_row(units_t* air, const float* wx, const float* wy, const Ti
     if (a == 0) continue;
     air[x] = 0;
     const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, p);
-    const float u = p.stochastic ? saltation::landing_draw(seed, step, g.global_index(x, y)) : 0.0f;
+    const saltation::LandingDraw u = p.stochastic
+                                         ? saltation::landing_draw(seed, step, g.global_index(x, y))
+                                         : saltation::LandingDraw{0.0f, 0.0f};
     saltation::land_hop(a, x, y, L, u, p, obstacles, o_base, pitch, [&](int cx, int cy, units_t q) {
       base[static_cast<long>(cy) * pitch + cx] += q;
     });
@@ -34,8 +36,9 @@ inline void scatter_row(units_t* air, const float* wx, const float* wy, const Ti
 }
 
 // Fast path, expected mode without obstacles: where each cell's airborne sand
-// lands (storage index of the lower-left receiving cell) and its exact
-// four-way split. Empties the airborne buffer (everything is in flight).
+// lands (storage index of the first of the kernel's 3 x 3 receiving cells)
+// and its exact nine-way split. Empties the airborne buffer (everything is in
+// flight).
 inline void split_row(units_t* __restrict air, const float* __restrict wx,
                       const float* __restrict wy, int nx, int y, long origin, long pitch,
                       const saltation::Params p, long* __restrict target,
@@ -44,13 +47,13 @@ inline void split_row(units_t* __restrict air, const float* __restrict wx,
   // reference, which would block vectorisation.)
   for (int x = 0; x < nx; ++x) {
     const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, p);
-    units_t q[4];
-    saltation::split_bilinear(air[x], L.fx, L.fy, q);
-    target[x] = origin + static_cast<long>(L.y0) * pitch + L.x0;
-    parts[4 * x] = q[0];
-    parts[4 * x + 1] = q[1];
-    parts[4 * x + 2] = q[2];
-    parts[4 * x + 3] = q[3];
+    const saltation::Spread sx = saltation::spread(L.fx);
+    const saltation::Spread sy = saltation::spread(L.fy);
+    units_t q[saltation::kLandingCells];
+    saltation::split_spread(air[x], sx, sy, q);
+    target[x] = origin + static_cast<long>(L.y0 + sy.lo) * pitch + L.x0 + sx.lo;
+    for (int k = 0; k < saltation::kLandingCells; ++k)
+      parts[saltation::kLandingCells * x + k] = q[k];
     air[x] = 0;
   }
 }
@@ -58,12 +61,13 @@ inline void split_row(units_t* __restrict air, const float* __restrict wx,
 inline void add_splits(const long* target, const units_t* parts, int nx, long pitch,
                        units_t* landed) {
   for (int x = 0; x < nx; ++x) {
-    const std::size_t k = 4 * static_cast<std::size_t>(x);
-    const long t = target[x];
-    landed[t] += parts[k];
-    landed[t + 1] += parts[k + 1];
-    landed[t + pitch] += parts[k + 2];
-    landed[t + pitch + 1] += parts[k + 3];
+    const units_t* q = parts + saltation::kLandingCells * static_cast<std::size_t>(x);
+    units_t* t = landed + target[x];
+    for (int j = 0; j < 3; ++j, t += pitch, q += 3) {
+      t[0] += q[0];
+      t[1] += q[1];
+      t[2] += q[2];
+    }
   }
 }
 

@@ -81,8 +81,9 @@ void CudaBackend::saltation_hop(std::int64_t step) {
     if (a == 0) return;
     airborne[i] = 0;
     const saltation::Landing L = saltation::landing(x, y, {wind_x[i], wind_y[i]}, p);
-    const float u =
-        p.stochastic ? saltation::landing_draw(seed, ustep, g.global_index(x, y)) : 0.0f;
+    const saltation::LandingDraw u =
+        p.stochastic ? saltation::landing_draw(seed, ustep, g.global_index(x, y))
+                     : saltation::LandingDraw{0.0f, 0.0f};
     saltation::land_hop(a, x, y, L, u, p, obstacles, o_base, g.pitch,
                         [&](int cx, int cy, units_t q) {
                           add_units(landed + static_cast<long>(cy) * g.pitch + cx, q);
