@@ -9,7 +9,9 @@
 #include <string>
 
 #include "sim/calibration.h"
+#include "sim/model.h"
 #include "sim_test_util.h"
+#include "stages/shear_stress.h"
 #include "wind/physics.h"
 #include "wind/regime.h"
 
@@ -101,11 +103,13 @@ TEST(PhysicalUnits, BelowThresholdNothingMoves) {
     const double ut = physics::threshold(physics::sand_of(probe));
     const std::string wind = R"({"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": )" +
                              std::to_string(0.9 * ut) + "}}";
-    const auto spec =
+    // Without the shear stress over relief: only the venturi speeds up the
+    // crest.
+    auto spec =
         test::spec_from(R"({"domain": {"nx": 64, "ny": 64, "cell_size_m": 1}, "transport": ")" +
                         std::string(transport) +
                         R"(", "layers": {"sand": {"constant": 0.5, "piles": [{"x_m": 32, "y_m": 32,
-           "height": 3, "radius_m": 20}]}}, "wind": )" +
+           "height": 3, "radius_m": 20}]}}, "physics": {"shear_stress_a": 0}, "wind": )" +
                         wind + "}");
     Simulation sim(spec, "", test::cpu_threads(1));
     const TileState before = sim.state();
@@ -115,6 +119,18 @@ TEST(PhysicalUnits, BelowThresholdNothingMoves) {
               test::owned(before.units[erg::fields::kSand]))
         << transport;
     for (auto a : test::owned(after.units[erg::fields::kAirborne])) ASSERT_EQ(a, 0) << transport;
+    // With it (the default), the pile's u* rises by more than the 11% that
+    // 0.9 u_t lacks towards the crest (Jackson & Hunt 1975; Kroy et al.
+    // 2002), and sand moves there, while the flat bed far from it stays.
+    spec.mutable_physics()->clear_shear_stress_a();
+    job::apply_defaults(spec);
+    Simulation sheared(spec, "", test::cpu_threads(1));
+    for (int k = 0; k < 5; ++k) sheared.step();
+    const auto sand0 = test::owned(before.units[erg::fields::kSand]);
+    const auto sand1 = test::owned(sheared.state().units[erg::fields::kSand]);
+    EXPECT_NE(sand1, sand0) << transport;
+    for (int x = 0; x < 64; ++x)
+      EXPECT_EQ(sand1[static_cast<size_t>(2) * 64 + x], sand0[2 * 64 + x]);
     // Just above the threshold, sand moves.
     const std::string above = R"({"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": )" +
                               std::to_string(1.2 * ut) + "}}";
@@ -126,6 +142,65 @@ TEST(PhysicalUnits, BelowThresholdNothingMoves) {
               test::owned(before.units[erg::fields::kSand]))
         << transport;
   }
+}
+
+// The shear stress over relief (stages/shear_stress.h) against its Fourier
+// form tau1_hat / tau0 = A (k_x^2 / |k| + i B k_x) h_hat (Kroy, Sauermann &
+// Herrmann 2002): over h = h0 sin(k e.x + phi), with e the wind's direction,
+// tau1 / tau0 = A k h0 (sin phi + B cos phi). A 128 m wavelength on 4 m
+// coarse cells, the wind at 30 degrees, the kernel truncated at 100 m: the
+// truncated lattice sum is within 2% of A k h0 (central differences: (k
+// delta)^2 / 6 = 0.6%; the truncation of the 1 / r^2 tail the rest).
+TEST(PhysicalUnits, ShearStressOverASinusoidFollowsKroyEtAl) {
+  const double delta = 4, lambda = 128, k = 2 * kPi / lambda, h0 = 1.5;
+  const double ex = std::cos(30 * kPi / 180), ey = std::sin(30 * kPi / 180);
+  shear_stress::Params p;
+  p.on = true;
+  p.a = 3;
+  p.b = 1;
+  p.radius = shear_stress::kernel_radius(100, delta);
+  ASSERT_EQ(p.radius, 25);
+  shear_stress::Kernel kern;
+  ASSERT_TRUE(kern.aim({static_cast<float>(ex), static_cast<float>(ey)}, p.radius));
+  const int h = p.radius + 2, n = 2 * h + 1;
+  for (double phi : {0.0, 1.0, kPi / 2, 2.5}) {
+    std::vector<double> window(static_cast<size_t>(n) * n), slope(window.size(), 0.0);
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        window[static_cast<size_t>(j) * n + i] =
+            h0 * std::sin(k * (ex * (i - h) + ey * (j - h)) * delta + phi);
+    for (int j = 1; j < n - 1; ++j)
+      for (int i = 1; i < n - 1; ++i)
+        slope[static_cast<size_t>(j) * n + i] =
+            shear_stress::slope_at(window.data(), n, kern.ex, kern.ey, delta, i, j);
+    const float tau = shear_stress::perturbation_at(slope.data(), n, kern.k.data(), kern.du.data(),
+                                                    kern.dv.data(), kern.taps, p, h, h);
+    const double expect = p.a * k * h0 * (std::sin(phi) + p.b * std::cos(phi));
+    EXPECT_NEAR(tau, expect, 0.02 * p.a * k * h0) << "phase " << phi;
+  }
+  // Flat ground: no perturbation, exactly.
+  EXPECT_EQ(shear_stress::speedup(0.0f), 1.0f);
+}
+
+// The hop of the physical modes is deposit_on_sand x the saturation length
+// 2.2 (rho_s / rho) d of Andreotti, Claudin & Pouliquen 2010 (1.19 m for
+// the default sand), at least one cell, at most model.max_hop_m.
+TEST(PhysicalUnits, HopIsTheSaturationLengthResolvedOnTheGrid) {
+  auto hop = [](const std::string& cell, const std::string& physics) {
+    const auto spec = test::spec_from(R"({"domain": {"nx": 64, "ny": 64, "cell_size_m": )" + cell +
+                                      R"(}, "layers": {"sand": {"constant": 2}}, "physics": {)" +
+                                      physics + R"(}, "wind": {"speed_is": "SHEAR_VELOCITY",
+                                      "constant": {"speed_mps": 0.4}}})");
+    return make_model(spec, 64, 64, 0, 0).saltation.max_hop_m;
+  };
+  const double lsat = 2.2 * 2650 / 1.225 * 0.00025;
+  EXPECT_NEAR(hop("0.5", ""), 0.6 * lsat, 1e-5);
+  EXPECT_FLOAT_EQ(hop("1", ""), 1.0f);                              // one cell
+  EXPECT_FLOAT_EQ(hop("1", R"("saturation_length_m": 5)"), 3.0f);   // 0.6 x 5 m
+  EXPECT_FLOAT_EQ(hop("1", R"("saturation_length_m": 50)"), 8.0f);  // max_hop_m
+  // Model units keep [P19]'s hop.
+  const auto model = test::spec_from(job_json(R"({"constant": {"speed_mps": 5}})"));
+  EXPECT_FLOAT_EQ(make_model(model, 64, 64, 0, 0).saltation.max_hop_m, 8.0f);
 }
 
 // A wind rose of four directions: the drift simulated over 20000 draws of

@@ -34,6 +34,16 @@ erg::v1::JobSpec flat_bed_job(const erg::v1::JobSpec& spec, double ustar, double
   *j.mutable_model() = spec.model();
   *j.mutable_physics() = spec.physics();
   j.mutable_model()->set_echo_dunes(false);
+  // Reptation and avalanching move sand down slopes only ([N24] eqs. 6-11):
+  // nothing on the steady flat bed. Off, so that the step of the
+  // measurement (the emptied half stands higher than the full half by the
+  // step's lift) does not send sand back across the line: that artefact
+  // grows with the lift squared, against a crossing that grows with the
+  // lift times the hop, so it reached 7% of the flux at 3 u_t with the
+  // one-cell hop of the saturation length (docs/physical-units.md).
+  j.mutable_model()->set_reptation_k(0);
+  j.mutable_model()->set_avalanche_iterations(0);
+  j.mutable_model()->set_bedrock_avalanche_iterations(0);
   // At least one wind-warping coarse cell (wide at very fine cells): the
   // torus must be a multiple of it (stages/wind_warping.h, coarse_factor).
   const auto& m = spec.model();

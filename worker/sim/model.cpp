@@ -80,6 +80,18 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
     s.inv_reference_shape =
         static_cast<float>(1.0 / physics::flux_shape(sand, sand.reference_excess * ut));
     s.kawamura = sand.law == erg::v1::PhysicalParameters::KAWAMURA_1951;
+    // The hop of the saturation length (Andreotti, Claudin & Pouliquen 2010),
+    // resolved on the grid (physics::physical_hop_m).
+    s.max_hop_m =
+        static_cast<float>(physics::physical_hop_m(sand, m.deposit_on_sand(), l, m.max_hop_m()));
+    // The shear stress over relief (Kroy, Sauermann & Herrmann 2002), on the
+    // warping's coarse window, whose halo then covers its kernel too.
+    md.shear.on = sand.shear_a > 0.0;
+    md.shear.a = static_cast<float>(sand.shear_a);
+    md.shear.b = static_cast<float>(sand.shear_b);
+    md.shear.radius = shear_stress::kernel_radius(sand.shear_radius_m, md.coarse.cx * l);
+    md.coarse.halo_x = std::max(md.coarse.halo_x, md.shear.radius + 2);
+    md.coarse.halo_y = std::max(md.coarse.halo_y, md.shear.radius + 2);
   }
 
   md.reptation_k = static_cast<float>(m.reptation_k());

@@ -13,6 +13,7 @@
 #include "erg/v1/job.pb.h"
 #include "stages/echo_dunes.h"
 #include "stages/saltation.h"
+#include "stages/shear_stress.h"
 #include "stages/wind_shadow.h"
 #include "stages/wind_warping.h"
 
@@ -70,6 +71,7 @@ struct Model {
   float venturi_k = 0;
   wind_warping::Params warp{};
   CoarseGrid coarse;
+  shear_stress::Params shear{};  // physical modes (stages/shear_stress.h)
   wind_shadow::Params shadow{};
   echo_dunes::Params echo{};
   saltation::Params saltation{};

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "wind/physics.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace erg::physics {
@@ -34,6 +35,10 @@ Sand sand_of(const erg::v1::JobSpec& spec) {
   s.a = p.threshold_a();
   s.kappa = p.von_karman();
   s.reference_excess = p.reference_excess();
+  s.saturation_length_m = p.saturation_length_m();
+  s.shear_a = p.shear_stress_a();
+  s.shear_b = p.shear_stress_b();
+  s.shear_radius_m = p.shear_stress_radius_m();
   s.law = p.flux_law() == erg::v1::PhysicalParameters::KAWAMURA_1951
               ? erg::v1::PhysicalParameters::KAWAMURA_1951
               : erg::v1::PhysicalParameters::LETTAU_1978;
@@ -46,6 +51,16 @@ bool physical(const erg::v1::WindRegime& w) {
 }
 bool physical(const erg::v1::JobSpec& spec) {
   return physical(spec.wind());
+}
+
+double saturation_length(const Sand& s) {
+  constexpr double kAndreotti = 2.2;  // Andreotti, Claudin & Pouliquen 2010
+  return s.saturation_length_m > 0 ? s.saturation_length_m : kAndreotti * s.rho_s / s.rho * s.d;
+}
+
+double physical_hop_m(const Sand& s, double deposit_on_sand, double cell_m, double max_hop_m) {
+  const double hop = deposit_on_sand * saturation_length(s);
+  return std::min(std::max(hop, cell_m), max_hop_m);
 }
 
 double threshold(const Sand& s) {

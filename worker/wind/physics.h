@@ -18,9 +18,22 @@ namespace erg::physics {
 struct Sand {
   double d = 0, rho_s = 0, rho = 0, packing = 0, g = 0, a = 0, kappa = 0;
   double reference_excess = 0;
+  double saturation_length_m = 0;  // 0: 2.2 (rho_s / rho) d (saturation_length)
+  double shear_a = 0, shear_b = 0, shear_radius_m = 0;  // stages/shear_stress.h
   erg::v1::PhysicalParameters::FluxLaw law = erg::v1::PhysicalParameters::LETTAU_1978;
 };
 Sand sand_of(const erg::v1::JobSpec& spec);
+
+// The saturation length of the flux: physics.saturation_length_m, or when 0
+// L_sat = 2.2 (rho_s / rho) d, measured in wind tunnels and from the
+// wavelength of emerging dunes (Andreotti, Claudin & Pouliquen 2010): 1.19 m
+// for 0.25 mm quartz sand in sea-level air. Metres.
+double saturation_length(const Sand& s);
+// The hop of the physical modes: the model's airborne sand deposits a
+// fraction beta (model.deposit_on_sand) at each landing, so its flux relaxes
+// over hop / beta; the hop is beta L_sat, at least one cell (a shorter hop is
+// not resolved: it would land mostly where it left) and at most max_hop_m.
+double physical_hop_m(const Sand& s, double deposit_on_sand, double cell_m, double max_hop_m);
 
 // Whether the job's wind speeds are physical (shear velocity or a wind at a
 // height) rather than model units.

@@ -9,6 +9,7 @@
 #include "backend/backend.h"
 #include "core/field.h"
 #include "dist/exchange.h"
+#include "stages/shear_stress.h"
 #include "stages/wind_warping.h"
 
 namespace erg::cpu {
@@ -117,6 +118,13 @@ class CpuBackend final : public Backend {
   CoarseSmoother smoother_;
   std::vector<double> coarse_mine_, window_;  // this tile's coarse cells, with their halo
   std::vector<float> grad_x_[2], grad_y_[2];
+  // shear stress over relief (physical modes): taps, e . grad h over the
+  // window, tau1 / tau0 at the tile's coarse cells -1 .. tcn
+  shear_stress::Kernel shear_kernel_;
+  std::vector<double> shear_slope_;
+  std::vector<float> shear_tau_;
+  bool shear_field(Vec2 a);  // wind.cpp: false when there is none (model units, still air)
+  bool shear_on_ = false;    // shear_field's answer for the last wind(), which warp_rows reads
   // Coarse interpolation stencils: per column (as arrays) and per row.
   std::vector<int> axis_x_i0_, axis_x_i1_;
   std::vector<float> axis_x_t_;

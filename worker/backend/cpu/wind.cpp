@@ -8,6 +8,7 @@
 
 #include "backend/cpu/cpu_backend.h"
 #include "stages/obstacles.h"
+#include "stages/shear_stress.h"
 #include "stages/venturi.h"
 #include "stages/wind_primitives.h"
 #include "stages/wind_warping.h"
@@ -155,11 +156,60 @@ void CpuBackend::heights() {
   }
 }
 
+// tau1 / tau0 of the shear stress over relief at the tile's coarse cells
+// -1 .. tcn (stages/shear_stress.h), from the coarse window: e . grad h over
+// the window's inner cells, then the truncated kernel, with the taps in the
+// outer loop and a row of outputs in the inner one (it vectorises); every
+// output still sums its taps in the kernel's order from 0, then adds B D h
+// and multiplies by A: the bits of shear_stress::perturbation_at (the
+// GPU's), whatever the threads.
+bool CpuBackend::shear_field(Vec2 a) {
+  const shear_stress::Params p = m_.shear;
+  if (!p.on || !shear_kernel_.aim(a, p.radius)) return false;
+  const wind_warping::TileWindow t = smoother_.tile();
+  const int wx = t.wx(), wy = t.wy(), gnx = t.tcnx + 2, gny = t.tcny + 2;
+  const double delta = m_.coarse.cx * m_.coarse.cell_m;
+  const double ex = shear_kernel_.ex, ey = shear_kernel_.ey;
+  shear_slope_.assign(static_cast<size_t>(wx) * wy, 0.0);
+  shear_tau_.resize(static_cast<size_t>(gnx) * gny);
+  const shear_stress::Kernel& k = shear_kernel_;
+#pragma omp parallel num_threads(threads_)
+  {
+#pragma omp for schedule(static)
+    for (int j = 1; j < wy - 1; ++j)
+      for (int i = 1; i < wx - 1; ++i)
+        shear_slope_[static_cast<size_t>(j) * wx + i] =
+            shear_stress::slope_at(window_.data(), wx, ex, ey, delta, i, j);
+    std::vector<double> acc(static_cast<size_t>(gnx));
+#pragma omp for schedule(static)
+    for (int j = 0; j < gny; ++j) {
+      // Output (i, j) is window cell (hx - 1 + i, hy - 1 + j).
+      const double* centre =
+          shear_slope_.data() + static_cast<size_t>(t.hy - 1 + j) * wx + t.hx - 1;
+      std::fill(acc.begin(), acc.end(), 0.0);
+      double* __restrict s = acc.data();
+      for (int n = 0; n < k.taps; ++n) {
+        const long o =
+            static_cast<long>(k.dv[static_cast<size_t>(n)]) * wx + k.du[static_cast<size_t>(n)];
+        const double w = k.k[static_cast<size_t>(n)];
+        const double* __restrict lo = centre - o;
+        const double* __restrict hi = centre + o;
+        for (int i = 0; i < gnx; ++i) s[i] += w * (lo[i] - hi[i]);
+      }
+      float* __restrict out = shear_tau_.data() + static_cast<size_t>(j) * gnx;
+      const double a = p.a, b = p.b;
+      for (int i = 0; i < gnx; ++i) out[i] = static_cast<float>(a * (s[i] + b * centre[i]));
+    }
+  }
+  return true;
+}
+
 // Reads no ghosts: the heights' exchange may run meanwhile (Simulation::step).
 void CpuBackend::wind(Vec2 a) {
   const wind_warping::TileWindow t = smoother_.tile();
   ex_.coarse_window(coarse_mine_, t.tcnx, t.tcny, t.hx, t.hy, window_);
   smoother_.gradients(window_, grad_x_, grad_y_, threads_);
+  shear_on_ = shear_field(a);
   last_a_ = a;
   last_batches_.clear();
   wind_ran_ = true;
@@ -193,7 +243,7 @@ void CpuBackend::warp_rows(Vec2 a) {
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y) {
     const wind_warping::Axis ay = axis_y_[static_cast<size_t>(y)];
-    std::vector<float> rows(4 * static_cast<size_t>(gnx));
+    std::vector<float> rows(5 * static_cast<size_t>(gnx));
     const std::vector<float>* fields[4] = {&grad_x_[0], &grad_y_[0], &grad_x_[1], &grad_y_[1]};
     for (int f = 0; f < 4; ++f)
       for (int i = 0; i < gnx; ++i)
@@ -202,6 +252,19 @@ void CpuBackend::warp_rows(Vec2 a) {
     warp_row(f_.height_m.row(y), f_.wind_x.row(y), f_.wind_y.row(y), g_.nx, a, k, wp,
              axis_x_i0_.data(), axis_x_i1_.data(), axis_x_t_.data(), rows.data(), rows.data() + gnx,
              rows.data() + 2 * gnx, rows.data() + 3 * gnx);
+    if (!shear_on_) continue;
+    // The surface wind carries u*: times sqrt(max(1 + tau1 / tau0, 0)),
+    // interpolated as the gradients are (the bits of wind_warping::sample_at).
+    float* tau = rows.data() + 4 * static_cast<size_t>(gnx);
+    for (int i = 0; i < gnx; ++i) tau[i] = wind_warping::lerp_rows(shear_tau_.data(), gnx, ay, i);
+    float* __restrict wx = f_.wind_x.row(y);
+    float* __restrict wy = f_.wind_y.row(y);
+    for (int x = 0; x < g_.nx; ++x) {
+      const wind_warping::Axis ax{axis_x_i0_[x], axis_x_i1_[x], axis_x_t_[x]};
+      const float s = shear_stress::speedup(wind_warping::lerp_columns(tau[ax.i0], tau[ax.i1], ax));
+      wx[x] = s * wx[x];
+      wy[x] = s * wy[x];
+    }
   }
 }
 

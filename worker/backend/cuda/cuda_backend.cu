@@ -369,6 +369,16 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
     }
   }
 
+  if (m_.shear.on) {
+    shear_slope_.reset(static_cast<std::size_t>(tw_.wx()) * tw_.wy());
+    shear_tau_.reset(gn);
+    const std::size_t taps =
+        static_cast<std::size_t>(shear_stress::kernel_capacity(m_.shear.radius));
+    shear_k_.reset(taps);
+    shear_du_.reset(taps);
+    shear_dv_.reset(taps);
+  }
+
   row_sums_.reset(3 * static_cast<std::size_t>(g_.ny));
   host_rows_.assign(3 * static_cast<std::size_t>(g_.ny), 0);
 }

@@ -25,6 +25,7 @@
 #include "dist/halo_frame.h"
 #include "dist/halo_packer.h"
 #include "dist/halo_path.h"
+#include "stages/shear_stress.h"
 #include "stages/wind_warping.h"
 
 namespace erg::gpu {
@@ -284,6 +285,7 @@ class CudaBackend final : public Backend {
   AvalancheResult avalanche(bool bedrock, int iterations, const Refill& refill,
                             bool* settled = nullptr);  // avalanching.cu
   void coarse_gradients();                             // wind.cu: window_ -> grad_x_, grad_y_
+  bool shear_field(Vec2 a);  // wind.cu: window_ -> shear_tau_; false when there is none
   // Per-row partial sums: copy the first `count` of row_sums_ to the host,
   // then add host_rows_[first, first + count) in a fixed order.
   void fetch_rows(int count);
@@ -336,6 +338,12 @@ class CudaBackend final : public Backend {
   DeviceBuffer<double> rows_, smooth_;         // the passes along y and along x
   DeviceBuffer<double> kx_[2], ky_[2];         // Gaussian taps per scale and axis
   DeviceBuffer<float> grad_x_[2], grad_y_[2];  // [tcny + 2][tcnx + 2], scale 0 large, 1 small
+  // shear stress over relief (physical modes, stages/shear_stress.h)
+  shear_stress::Kernel shear_kernel_;  // host taps of the current direction
+  DeviceBuffer<double> shear_k_;       // ... on the device
+  DeviceBuffer<int> shear_du_, shear_dv_;
+  DeviceBuffer<double> shear_slope_;  // e . grad h over the window
+  DeviceBuffer<float> shear_tau_;     // tau1 / tau0, [tcny + 2][tcnx + 2]
   // reductions and downloads
   DeviceBuffer<total_t> row_sums_;  // 3 ny
   std::vector<total_t> host_rows_;

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "backend/cuda/cuda_backend.h"
+#include "stages/shear_stress.h"
 #include "stages/venturi.h"
 #include "stages/wind_primitives.h"
 #include "stages/wind_warping.h"
@@ -81,10 +82,34 @@ __global__ void gradient_kernel(wind_warping::TileWindow t, const double* smooth
   gy[k] = g.y;
 }
 
+// e . grad h at the window's inner cells: shear_stress::slope_at.
+__global__ void shear_slope_kernel(wind_warping::TileWindow t, const double* window, double ex,
+                                   double ey, double delta_m, double* slope) {
+  const std::size_t k = flat_index();
+  const int wx = t.wx(), wy = t.wy();
+  if (k >= static_cast<std::size_t>(wx) * wy) return;
+  const int j = static_cast<int>(k / wx), i = static_cast<int>(k % wx);
+  const bool inner = i > 0 && i < wx - 1 && j > 0 && j < wy - 1;
+  slope[k] = inner ? shear_stress::slope_at(window, wx, ex, ey, delta_m, i, j) : 0.0;
+}
+
+// tau1 / tau0 at the tile's coarse cells -1 .. tcn: shear_stress::perturbation_at.
+__global__ void shear_tau_kernel(wind_warping::TileWindow t, const double* slope, const double* k,
+                                 const int* du, const int* dv, int taps, shear_stress::Params p,
+                                 float* tau) {
+  const std::size_t q = flat_index();
+  const int n = t.tcnx + 2;
+  if (q >= static_cast<std::size_t>(t.tcny + 2) * n) return;
+  const int j = static_cast<int>(q / n), i = static_cast<int>(q % n);
+  tau[q] =
+      shear_stress::perturbation_at(slope, t.wx(), k, du, dv, taps, p, t.hx - 1 + i, t.hy - 1 + j);
+}
+
+// tau: tau1 / tau0 at the coarse cells (shear stress over relief), or null.
 __global__ void wind_kernel(TileGeom g, CoarseGrid c, int gnx, Vec2 a, float venturi_k,
                             wind_warping::Params wp, const float* h, const float* gx0,
-                            const float* gy0, const float* gx1, const float* gy1, float* wind_x,
-                            float* wind_y) {
+                            const float* gy0, const float* gx1, const float* gy1, const float* tau,
+                            float* wind_x, float* wind_y) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -98,8 +123,11 @@ __global__ void wind_kernel(TileGeom g, CoarseGrid c, int gnx, Vec2 a, float ven
   const Vec2 gs{wind_warping::sample_at(gx1, gnx, ax, ay),
                 wind_warping::sample_at(gy1, gnx, ax, ay)};
   const Vec2 w = wind_warping::warp(v, gl, gs, wp);
-  wind_x[i] = w.x;
-  wind_y[i] = w.y;
+  // The surface wind carries u*: times sqrt(max(1 + tau1 / tau0, 0)).
+  const float s =
+      tau != nullptr ? shear_stress::speedup(wind_warping::sample_at(tau, gnx, ax, ay)) : 1.0f;
+  wind_x[i] = tau != nullptr ? s * w.x : w.x;
+  wind_y[i] = tau != nullptr ? s * w.y : w.y;
 }
 
 // One batch of wind primitives added at every owned cell, from its global
@@ -137,6 +165,35 @@ void CudaBackend::coarse_gradients() {
   }
 }
 
+bool CudaBackend::shear_field(Vec2 a) {
+  const shear_stress::Params p = m_.shear;
+  if (!p.on) return false;
+  // The taps go to the device when the direction changes.
+  const double ex0 = shear_kernel_.ex, ey0 = shear_kernel_.ey;
+  const int taps0 = shear_kernel_.taps;
+  if (!shear_kernel_.aim(a, p.radius)) return false;
+  const shear_stress::Kernel& k = shear_kernel_;
+  if (taps0 == 0 || k.ex != ex0 || k.ey != ey0) {
+    const std::size_t n = static_cast<std::size_t>(k.taps);
+    if (n > 0) {
+      ERG_CUDA_CHECK(
+          cudaMemcpy(shear_k_.get(), k.k.data(), n * sizeof(double), cudaMemcpyHostToDevice));
+      ERG_CUDA_CHECK(
+          cudaMemcpy(shear_du_.get(), k.du.data(), n * sizeof(int), cudaMemcpyHostToDevice));
+      ERG_CUDA_CHECK(
+          cudaMemcpy(shear_dv_.get(), k.dv.data(), n * sizeof(int), cudaMemcpyHostToDevice));
+    }
+  }
+  const wind_warping::TileWindow t = tw_;
+  const Launch ls = flat(static_cast<std::size_t>(t.wx()) * t.wy());
+  const Launch lt = flat(static_cast<std::size_t>(t.tcny + 2) * (t.tcnx + 2));
+  ERG_LAUNCH(shear_slope_kernel, ls.grid, ls.block, t, window_.get(), k.ex, k.ey,
+             m_.coarse.cx * m_.coarse.cell_m, shear_slope_.get());
+  ERG_LAUNCH(shear_tau_kernel, lt.grid, lt.block, t, shear_slope_.get(), shear_k_.get(),
+             shear_du_.get(), shear_dv_.get(), k.taps, p, shear_tau_.get());
+  return true;
+}
+
 void CudaBackend::heights() {
   const CoarseGrid& c = m_.coarse;
   const Launch cells = owned_cells(g_);
@@ -161,10 +218,11 @@ void CudaBackend::wind(Vec2 a) {
   ERG_CUDA_CHECK(
       cudaMemcpy(window_.get(), window_host_.data(), window_.bytes(), cudaMemcpyHostToDevice));
   coarse_gradients();
+  const float* tau = shear_field(a) ? shear_tau_.get() : nullptr;
 
   ERG_LAUNCH(wind_kernel, cells.grid, cells.block, g_, c, tw_.tcnx + 2, a, m_.venturi_k, m_.warp,
              d_.height_m.get(), grad_x_[0].get(), grad_y_[0].get(), grad_x_[1].get(),
-             grad_y_[1].get(), d_.wind_x.get(), d_.wind_y.get());
+             grad_y_[1].get(), tau, d_.wind_x.get(), d_.wind_y.get());
 }
 
 }  // namespace erg::gpu
