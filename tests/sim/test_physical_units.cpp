@@ -103,13 +103,13 @@ TEST(PhysicalUnits, BelowThresholdNothingMoves) {
     const double ut = physics::threshold(physics::sand_of(probe));
     const std::string wind = R"({"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": )" +
                              std::to_string(0.9 * ut) + "}}";
-    // Without the shear stress over relief: only the venturi speeds up the
-    // crest.
+    // Without the shear stress over relief (the default,
+    // physics.shear_stress_a = 0): only the venturi speeds up the crest.
     auto spec =
         test::spec_from(R"({"domain": {"nx": 64, "ny": 64, "cell_size_m": 1}, "transport": ")" +
                         std::string(transport) +
                         R"(", "layers": {"sand": {"constant": 0.5, "piles": [{"x_m": 32, "y_m": 32,
-           "height": 3, "radius_m": 20}]}}, "physics": {"shear_stress_a": 0}, "wind": )" +
+           "height": 3, "radius_m": 20}]}}, "wind": )" +
                         wind + "}");
     Simulation sim(spec, "", test::cpu_threads(1));
     const TileState before = sim.state();
@@ -119,11 +119,10 @@ TEST(PhysicalUnits, BelowThresholdNothingMoves) {
               test::owned(before.units[erg::fields::kSand]))
         << transport;
     for (auto a : test::owned(after.units[erg::fields::kAirborne])) ASSERT_EQ(a, 0) << transport;
-    // With it (the default), the pile's u* rises by more than the 11% that
-    // 0.9 u_t lacks towards the crest (Jackson & Hunt 1975; Kroy et al.
-    // 2002), and sand moves there, while the flat bed far from it stays.
-    spec.mutable_physics()->clear_shear_stress_a();
-    job::apply_defaults(spec);
+    // With it (A = 3 of Kroy et al. 2002), the pile's u* rises by more than
+    // the 11% that 0.9 u_t lacks towards the crest (Jackson & Hunt 1975), and
+    // sand moves there, while the flat bed far from it stays.
+    spec.mutable_physics()->set_shear_stress_a(3);
     Simulation sheared(spec, "", test::cpu_threads(1));
     for (int k = 0; k < 5; ++k) sheared.step();
     const auto sand0 = test::owned(before.units[erg::fields::kSand]);
