@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // Bitwise comparison of two snapshot files: every field and the exact totals
-// (e2e tests of tiling, restarts and steering).
+// (e2e tests of tiling, restarts and steering), and every level of the
+// overview pyramid.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -26,6 +27,15 @@ inline void expect_same_snapshot(const std::string& a, const std::string& b,
   EXPECT_EQ(sa.meta.sand_units_total, sb.meta.sand_units_total) << what;
   EXPECT_EQ(sa.meta.bedrock_units_total, sb.meta.bedrock_units_total) << what;
   EXPECT_EQ(sa.meta.airborne_units_total, sb.meta.airborne_units_total) << what;
+  const int levels = erg::io::overview_levels(sa.meta.nx, sa.meta.ny);
+  for (int l = 1; l <= levels; ++l) {
+    const auto la = erg::io::read_overview_level(a, l);
+    const auto lb = erg::io::read_overview_level(b, l);
+    const std::string at = what + ": /overview/level_" + std::to_string(l);
+    EXPECT_TRUE(la.bedrock == lb.bedrock) << at << "/bedrock";
+    EXPECT_TRUE(la.sand == lb.sand) << at << "/sand";
+    EXPECT_TRUE(la.vegetation == lb.vegetation) << at << "/vegetation";
+  }
 }
 
 }  // namespace erg::test

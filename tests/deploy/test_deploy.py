@@ -85,7 +85,7 @@ class Deploy(unittest.TestCase):
         self.assertIn("serving", err)
 
     def test_slurm_scripts_are_valid_bash(self):
-        for name in ("ergd-job.sbatch", "erg-run.sbatch"):
+        for name in ("ergd-job.sbatch", "erg-run.sbatch", "sand-sea.sbatch"):
             r = subprocess.run(["bash", "-n", os.path.join(DEPLOY, "slurm", name)],
                                capture_output=True, text=True)
             self.assertEqual(r.returncode, 0, name + ": " + r.stderr)

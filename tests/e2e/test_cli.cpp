@@ -357,10 +357,22 @@ TEST_P(Example, Runs) {
   const erg::io::Snapshot s = erg::io::read_snapshot(t / "out/snapshots/step_00000006.h5");
   EXPECT_EQ(s.meta.step, 6);
 }
+// (examples/sand_sea/sand_sea.json is 6.5e9 cells: it is checked, never run,
+// below; its 1/4096-area twin runs here.)
 INSTANTIATE_TEST_SUITE_P(Examples, Example,
                          ::testing::Values("barchans", "transverse", "linear", "star", "nabkha",
                                            "yardangs", "echo_dune", "vortex", "barchans_expected",
-                                           "transverse_expected", "linear_expected"));
+                                           "transverse_expected", "linear_expected",
+                                           "sand_sea/sand_sea_small"));
+
+// The continent-scale sand sea passes `erg check` (domain a multiple of the
+// coarse wind cell, physical wind) and is 4096 times its small twin.
+TEST(SandSea, TheContinentJobIsValidAndNotRun) {
+  const Result r = run(kErg + " check " + kExamples + "/sand_sea/sand_sea.json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("\"nx\": 80640"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("steps per year"), std::string::npos) << r.output;
+}
 
 }  // namespace
 

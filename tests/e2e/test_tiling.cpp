@@ -16,6 +16,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
+#include <iterator>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -448,6 +450,113 @@ TEST(Tiling, ErgRunStartsRanksAndReportsHaloTraffic) {
   EXPECT_NE(r.output.find("bytes per cell (peak resident, all ranks:"), std::string::npos)
       << r.output;
   expect_same_runs(t / "one", t / "two", {"00000030"}, "erg run --ranks 2");
+}
+
+// Many ranks on small tiles (oversubscribed on the test machine): 16, 32 and
+// 64 ranks give the bits of one rank, overview pyramid included, and every
+// rank sends the same number of halo messages per step at every rank count:
+// each tile has eight distinct neighbours, and the wind warping's coarse
+// window (small radii here) lies within them. A rank's traffic per step
+// does not grow with the number of ranks.
+class ManyRanks : public ::testing::TestWithParam<int> {};
+
+// Measured once on 16 ranks (4 x 4 tiles); the same on 32 (8 x 4) and 64 (8 x 8).
+constexpr long long kManyRanksMessagesPerStep = 0;
+
+TEST_P(ManyRanks, GiveTheBitsOfOneRankAndTheSameMessagesPerRank) {
+  const int ranks = GetParam();
+  TempDir t("erg_tiling");
+  write(t / "small.json", R"({"domain": {"nx": 128, "ny": 128, "cell_size_m": 2.0},
+ "layers": {"bedrock": {"fbm": {"amplitude": 2, "wavelength_m": 64, "octaves": 2}},
+            "sand": {"patches": {"coverage": 0.5, "radius_m": 12, "height": 2, "falloff_m": 4}},
+            "vegetation": {"fbm": {"amplitude": 0.4, "offset": 0.1, "wavelength_m": 64, "octaves": 2}}},
+ "wind": {"constant": {"speed_mps": 6, "direction_deg": 25}},
+ "model": {"avalanche_iterations": 4, "warp_large_radius_m": 4, "warp_small_radius_m": 2},
+ "run": {"steps": 3, "snapshot_every": 3}})");
+  const std::string one = t / "ranks1";
+  Result r = run(worker_on(1, (t / "small.json") + " --out " + one + " --quiet --threads 1"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string dir = t / ("ranks" + std::to_string(ranks));
+  const auto t0 = std::chrono::steady_clock::now();
+  r = run(worker_on(ranks, (t / "small.json") + " --out " + dir + " --progress-fd 1 --threads 1"));
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_EQ(r.code, 0) << ranks << " ranks: " << r.output;
+  expect_same_runs(one, dir, {"00000000", "00000003"}, std::to_string(ranks) + " ranks");
+  const auto done = done_event(r.output);
+  EXPECT_EQ(done.halo_messages_per_step(), done.halo_messages_min_rank_per_step())
+      << ranks << " ranks: ranks send different numbers of messages";
+  if (kManyRanksMessagesPerStep > 0) {
+    EXPECT_EQ(done.halo_messages_per_step(), kManyRanksMessagesPerStep) << ranks << " ranks";
+  }
+  std::cout << "[ many ranks ] " << ranks << " ranks: " << wall << " s wall, "
+            << done.halo_messages_per_step() << " messages and " << done.halo_bytes_per_step()
+            << " bytes per rank and step; busy ms per step: rank 0 " << done.step_ms_rank0()
+            << ", median rank " << done.step_ms_median_rank() << "\n";
+}
+
+INSTANTIATE_TEST_SUITE_P(Ranks, ManyRanks, ::testing::Values(16, 32, 64));
+
+// Width and height of a PNG (its IHDR chunk).
+std::array<int, 2> png_size(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  unsigned char h[24] = {};
+  f.read(reinterpret_cast<char*>(h), sizeof h);
+  const auto be = [&](int at) {
+    return (h[at] << 24) | (h[at + 1] << 16) | (h[at + 2] << 8) | h[at + 3];
+  };
+  return {be(16), be(20)};
+}
+
+// A domain wider than a preview: the preview is drawn from the overview
+// level that fits (level 2 here: 4112 cells -> 1028 blocks), the same on one
+// rank and on two, and the pyramid's blocks are the means of their cells.
+TEST(Tiling, PreviewsOfLargeDomainsComeFromTheOverviewPyramid) {
+  TempDir t("erg_tiling");
+  write(t / "wide.json", R"({"domain": {"nx": 4112, "ny": 48, "cell_size_m": 1.0},
+ "layers": {"sand": {"patches": {"coverage": 0.5, "radius_m": 8, "height": 2, "falloff_m": 3}},
+            "vegetation": {"fbm": {"amplitude": 0.4, "offset": 0.1, "wavelength_m": 40, "octaves": 2}}},
+ "wind": {"constant": {"speed_mps": 6, "direction_deg": 25}},
+ "model": {"avalanche_iterations": 4, "warp_large_radius_m": 8, "warp_small_radius_m": 4},
+ "run": {"steps": 1, "snapshot_every": 1}})");
+  for (const int ranks : {1, 2}) {
+    const std::string dir = t / ("ranks" + std::to_string(ranks));
+    const Result r =
+        run(worker_on(ranks, (t / "wide.json") + " --out " + dir + " --quiet --threads 1"));
+    ASSERT_EQ(r.code, 0) << r.output;
+  }
+  const std::string a = t / "ranks1", b = t / "ranks2";
+  erg::test::expect_same_snapshot(a + "/snapshots/step_00000001.h5",
+                                  b + "/snapshots/step_00000001.h5", "1 and 2 ranks");
+  const std::string pa = a + "/previews/step_00000001.png", pb = b + "/previews/step_00000001.png";
+  EXPECT_EQ(png_size(pa)[0], 1028);
+  std::ifstream fa(pa, std::ios::binary), fb(pb, std::ios::binary);
+  const std::string ba((std::istreambuf_iterator<char>(fa)), {}),
+      bb((std::istreambuf_iterator<char>(fb)), {});
+  EXPECT_FALSE(ba.empty());
+  EXPECT_TRUE(ba == bb) << "the previews of 1 and 2 ranks differ";
+  // Every block of level 1 and of level 3 is the mean of its cells.
+  const auto s = erg::io::read_snapshot(a + "/snapshots/step_00000001.h5");
+  EXPECT_EQ(erg::io::overview_levels(4112, 48), 13);
+  for (const int level : {1, 3}) {
+    const auto l = erg::io::read_overview_level(a + "/snapshots/step_00000001.h5", level);
+    const int k = 1 << level;
+    ASSERT_EQ(l.nx, (4112 + k - 1) / k);
+    ASSERT_EQ(l.ny, 48 / k);
+    for (int by = 0; by < l.ny; ++by)
+      for (int bx = 0; bx < l.nx; ++bx) {
+        double sand = 0, veg = 0;
+        int n = 0;
+        for (int y = by * k; y < std::min(48, (by + 1) * k); ++y)
+          for (int x = bx * k; x < std::min(4112, (bx + 1) * k); ++x, ++n) {
+            sand += s[erg::fields::kSand][static_cast<std::size_t>(y) * 4112 + x];
+            veg += s[erg::fields::kVegetation][static_cast<std::size_t>(y) * 4112 + x];
+          }
+        const std::size_t i = static_cast<std::size_t>(by) * l.nx + bx;
+        ASSERT_NEAR(l.sand[i], sand / n, 1e-6 * (1 + sand / n))
+            << level << ": " << bx << ", " << by;
+        ASSERT_NEAR(l.vegetation[i], veg / n, 1e-6) << level << ": " << bx << ", " << by;
+      }
+  }
 }
 
 }  // namespace

@@ -14,19 +14,9 @@
 
 namespace erg::io::detail {
 
-namespace {
-
-struct Coordinate {
-  const char* name;
-  const char* long_name;
-  const char* units;
-  const char* standard_name;
-  const char* axis;
-};
-
 // Creates a 1-D float64 dimension scale and writes its values and attributes.
-void write_coordinate(hid_t file, const Coordinate& c, const std::vector<double>& values,
-                      hid_t dxpl, bool write_values, const std::string& path) {
+void write_cf_coordinate(hid_t file, const CfCoordinate& c, const std::vector<double>& values,
+                         hid_t dxpl, bool write_values, const std::string& path) {
   const std::string what = std::string("coordinate '") + c.name + "'";
   const hsize_t n = values.size();
   Hid space = checked(H5Screate_simple(1, &n, nullptr), H5Sclose, path, "dataspace for " + what);
@@ -53,8 +43,6 @@ void write_coordinate(hid_t file, const Coordinate& c, const std::vector<double>
   close_checked(dset, path, "cannot close " + what);
 }
 
-}  // namespace
-
 double snapshot_time_days(const SnapshotMeta& meta) {
   return meta.time_days;
 }
@@ -70,14 +58,15 @@ void write_cf(hid_t file, const SnapshotMeta& meta, const std::vector<std::strin
   // UDUNITS unit "day", not "days": xarray decodes "days" into timedelta64[ns],
   // which silently overflows past 292 years (a long dune run); "day" stays a
   // float number of days.
-  write_coordinate(file, {"time", "simulated time since the start of the run", "day", "time", "T"},
-                   {snapshot_time_days(meta)}, dxpl, write_values, path);
-  write_coordinate(file,
-                   {"y", "y (northward) of the cell centre", "m", "projection_y_coordinate", "Y"},
-                   ys, dxpl, write_values, path);
-  write_coordinate(file,
-                   {"x", "x (eastward) of the cell centre", "m", "projection_x_coordinate", "X"},
-                   xs, dxpl, write_values, path);
+  write_cf_coordinate(file,
+                      {"time", "simulated time since the start of the run", "day", "time", "T"},
+                      {snapshot_time_days(meta)}, dxpl, write_values, path);
+  write_cf_coordinate(
+      file, {"y", "y (northward) of the cell centre", "m", "projection_y_coordinate", "Y"}, ys,
+      dxpl, write_values, path);
+  write_cf_coordinate(file,
+                      {"x", "x (eastward) of the cell centre", "m", "projection_x_coordinate", "X"},
+                      xs, dxpl, write_values, path);
 
   Hid time = checked(H5Dopen2(file, "time", H5P_DEFAULT), H5Dclose, path, "cannot open /time");
   Hid y = checked(H5Dopen2(file, "y", H5P_DEFAULT), H5Dclose, path, "cannot open /y");

@@ -40,4 +40,29 @@ double snapshot_time_days(const SnapshotMeta& meta);
 void write_cf(hid_t file, const SnapshotMeta& meta, const std::vector<std::string>& layers,
               hid_t dxpl, bool write_values, const std::string& path);
 
+// A 1-D float64 coordinate variable `name` in `loc` (a file or group), made a
+// dimension scale of the same name, with its CF attributes; values written
+// as write_cf writes its own (`dxpl`, `write_values`).
+struct CfCoordinate {
+  const char* name;
+  const char* long_name;
+  const char* units;
+  const char* standard_name;
+  const char* axis;
+};
+void write_cf_coordinate(hid_t loc, const CfCoordinate& c, const std::vector<double>& values,
+                         hid_t dxpl, bool write_values, const std::string& path);
+
+// The overview pyramid (io.h OverviewPyramid) as the groups
+// /overview/level_L, each a CF grid of its own: coordinates x and y (block
+// centres, metres), float32 bedrock, sand and vegetation [1][ny][nx] with the
+// dimensions (/time, y, x) and the registry's units and names, and the
+// attributes level, block_cells (2^L) and block_size_m; /overview holds
+// levels (their number). Each caller writes the blocks its levels hold with
+// `dxpl` (collectively in the parallel writer, where every rank calls this
+// with its own blocks and coordinates come from the rank with
+// `write_values`). Datasets are deflated in chunks of at most 256 x 256.
+void write_overview(hid_t file, const SnapshotMeta& meta, const OverviewPyramid& pyramid,
+                    hid_t dxpl, bool write_values, const std::string& path);
+
 }  // namespace erg::io::detail

@@ -67,12 +67,44 @@ struct SnapshotFields {
   const LayerValues& operator[](fields::Id id) const { return layer[static_cast<std::size_t>(id)]; }
 };
 
+// ---- overview pyramid ---------------------------------------------------------
+// Level L of a snapshot's overview pyramid: the domain in blocks of 2^L x 2^L
+// cells (block (i, j) covers cells [i 2^L, (i+1) 2^L) x [j 2^L, (j+1) 2^L),
+// clipped to the domain: the last block of a row or column may be partial),
+// each holding the mean bedrock, sand (metres) and vegetation of its cells.
+// The means are computed from exact integer sums (sim/overview.h), so a level
+// is bitwise the same for any tiling. A rank holds the blocks it owns: the
+// rectangle x0, y0, bnx x bny of the level's grid (the whole grid on one
+// process), row-major.
+struct OverviewLevel {
+  int level = 0;                                 // blocks of 2^level cells a side
+  int nx = 0, ny = 0;                            // the level's grid: ceil(domain / 2^level)
+  int x0 = 0, y0 = 0;                            // the first block held
+  int bnx = 0, bny = 0;                          // blocks held
+  std::vector<float> bedrock, sand, vegetation;  // [bny][bnx]
+};
+// Levels 1, 2, ... up to the one that is a single block (a domain of one cell
+// has none). In the file: the group /overview/level_L (README "Snapshot
+// contract").
+using OverviewPyramid = std::vector<OverviewLevel>;
+// The number of levels of a domain's pyramid: the smallest L with both
+// ceil(nx / 2^L) and ceil(ny / 2^L) equal to 1.
+int overview_levels(int nx, int ny);
+// The finest level (0: the cells themselves) whose grid fits max_px on its
+// longer side: the level a preview of at most max_px pixels is drawn from.
+int overview_level_for(int nx, int ny, int max_px);
+// Reads level L (>= 1) of a snapshot's pyramid: kilobytes for a preview of
+// any domain. Throws IoError when the file has no such level.
+OverviewLevel read_overview_level(const std::string& path, int level);
+
 // Writes one float32 dataset [1][ny][nx] (dimensions time, y, x) per layer
 // given, in the registry's snapshot order (bedrock, sand, vegetation, wind_x,
 // wind_y, then the optional ones); deflate+shuffle, chunked; the coordinates
 // /time /y /x and the CF metadata of the registry (a netCDF-4 file, io/cf.h);
 // the root attributes of SnapshotMeta. Atomic (write then rename).
-void write_snapshot(const std::string& path, const SnapshotMeta& meta, const SnapshotFields& f);
+// With `pyramid` (sim/overview.h) its levels go in too.
+void write_snapshot(const std::string& path, const SnapshotMeta& meta, const SnapshotFields& f,
+                    const OverviewPyramid* pyramid = nullptr);
 
 // XDMF sidecar so ParaView opens the snapshot: the grid in the X-Y plane,
 // nodes at the cell centres (the CF x and y), node attributes height
@@ -262,7 +294,8 @@ using TileRowsIn = std::function<void(fields::Id id, int y0, int y1, const void*
 // every rank) drawn band by band from `rows`.
 void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const SnapshotMeta& meta,
                              const std::vector<fields::Id>& layers, const TileRows& rows,
-                             const TileSlab& slab, int chunk_nx, int chunk_ny);
+                             const TileSlab& slab, int chunk_nx, int chunk_ny,
+                             const OverviewPyramid* pyramid = nullptr);
 // Every state field drawn band by band from `rows`; `header` gives step,
 // grid, spec and ledger (its arrays are not read).
 void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Checkpoint& header,
@@ -274,9 +307,11 @@ void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Che
 // Returns the header (arrays empty). Collective.
 Checkpoint read_checkpoint_parallel(MPI_Comm comm, const std::string& path, const TileSlab& slab,
                                     const std::function<TileRowsIn(const Checkpoint&)>& start);
+// `pyramid`: the blocks of each level this rank owns (sim/overview.h); null on
+// every rank or on none.
 void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const SnapshotMeta& meta,
                              const SnapshotFields& tile_fields, const TileSlab& slab, int chunk_nx,
-                             int chunk_ny);
+                             int chunk_ny, const OverviewPyramid* pyramid = nullptr);
 // c.nx, c.ny are the global size; c's arrays hold the tile (slab) only.
 void write_checkpoint_parallel(MPI_Comm comm, const std::string& path, const Checkpoint& c,
                                const TileSlab& slab, int chunk_nx, int chunk_ny);

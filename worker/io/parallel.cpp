@@ -478,6 +478,16 @@ void write_atomically(Collective& co, const std::string& path, hid_t fcpl, std::
   }
 }
 
+// The overview levels (cf.h write_overview): three float32 layers and two
+// coordinates per level, chunks of at most 256 x 256 blocks.
+void add_overview_bound(SizeBound& bound, const OverviewPyramid& pyramid) {
+  for (const OverviewLevel& l : pyramid) {
+    for (int k = 0; k < 3; ++k) bound.add_dataset(l.nx, l.ny, 1, sizeof(float), 256, 256);
+    bound.bytes += 8 * (static_cast<std::uint64_t>(l.nx) + static_cast<std::uint64_t>(l.ny)) +
+                   (std::uint64_t{16} << 10);
+  }
+}
+
 }  // namespace
 
 int band_rows(int chunk_ny) {
@@ -523,7 +533,8 @@ void agree_on_snapshot(Collective& co, const std::string& path, const SnapshotMe
 // metres. Collective; the arguments are agreed on.
 void write_snapshot_bands(Collective& co, const std::string& path, const SnapshotMeta& meta,
                           const std::vector<fields::Id>& ids, const TileRows& rows,
-                          const TileSlab& slab, int chunk_nx, int chunk_ny) {
+                          const TileSlab& slab, int chunk_nx, int chunk_ny,
+                          const OverviewPyramid* pyramid) {
   SizeBound bound;
   for (std::size_t k = 0; k < ids.size(); ++k) {
     bound.add_dataset(meta.nx, meta.ny, 1, sizeof(float), chunk_nx, band_rows(chunk_ny));
@@ -539,6 +550,7 @@ void write_snapshot_bands(Collective& co, const std::string& path, const Snapsho
   }
   const Bands bands =
       slab_bands(co.comm(), slab, band_rows(std::min(chunk_ny, std::max(meta.ny, 1))));
+  if (pyramid) add_overview_bound(bound, *pyramid);
 
   detail::Hdf5Guard guard;
   write_atomically(co, path, H5P_DEFAULT, bound.bytes, [&](hid_t file) {
@@ -560,6 +572,11 @@ void write_snapshot_bands(Collective& co, const std::string& path, const Snapsho
     // The coordinates' values from rank 0, the metadata from every rank.
     co.run([&] { detail::write_cf(file, meta, names, dxpl.get(), co.rank() == 0, path); });
     co.agree();
+    if (pyramid) {
+      co.run(
+          [&] { detail::write_overview(file, meta, *pyramid, dxpl.get(), co.rank() == 0, path); });
+      co.agree();
+    }
   });
 }
 
@@ -573,7 +590,7 @@ std::string ids_text(const std::vector<fields::Id>& ids) {
 
 void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const SnapshotMeta& meta,
                              const SnapshotFields& f, const TileSlab& slab, int chunk_nx,
-                             int chunk_ny) {
+                             int chunk_ny, const OverviewPyramid* pyramid) {
   Collective co(comm, path);
   co.run([&] {
     if (!slab_empty(slab)) detail::check_required_layers(path, f, " on tile " + slab_text(slab));
@@ -598,12 +615,13 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
       o[c] = l.data[static_cast<std::size_t>(l.stride) * (c0 + c) +
                     static_cast<std::size_t>(l.offset)];
   };
-  write_snapshot_bands(co, path, meta, ids, rows, slab, chunk_nx, chunk_ny);
+  write_snapshot_bands(co, path, meta, ids, rows, slab, chunk_nx, chunk_ny, pyramid);
 }
 
 void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const SnapshotMeta& meta,
                              const std::vector<fields::Id>& layers, const TileRows& rows,
-                             const TileSlab& slab, int chunk_nx, int chunk_ny) {
+                             const TileSlab& slab, int chunk_nx, int chunk_ny,
+                             const OverviewPyramid* pyramid) {
   Collective co(comm, path);
   co.run([&] {
     std::string missing;
@@ -615,7 +633,7 @@ void write_snapshot_parallel(MPI_Comm comm, const std::string& path, const Snaps
   });
   co.agree();
   agree_on_snapshot(co, path, meta, slab, chunk_nx, chunk_ny, ids_text(layers));
-  write_snapshot_bands(co, path, meta, layers, rows, slab, chunk_nx, chunk_ny);
+  write_snapshot_bands(co, path, meta, layers, rows, slab, chunk_nx, chunk_ny, pyramid);
 }
 
 namespace {

@@ -164,7 +164,8 @@ int read_extent(hid_t file, const char* name, const std::string& path) {
 
 }  // namespace
 
-void write_snapshot(const std::string& path, const SnapshotMeta& meta, const SnapshotFields& f) {
+void write_snapshot(const std::string& path, const SnapshotMeta& meta, const SnapshotFields& f,
+                    const OverviewPyramid* pyramid) {
   // Argument errors first, before anything touches the disk.
   check_grid(path, meta.nx, meta.ny);
   detail::check_required_layers(path, f);
@@ -183,6 +184,7 @@ void write_snapshot(const std::string& path, const SnapshotMeta& meta, const Sna
     }
     detail::write_snapshot_attrs(fid, meta, path);
     detail::write_cf(fid, meta, names, H5P_DEFAULT, /*write_values=*/true, path);
+    if (pyramid) detail::write_overview(fid, meta, *pyramid, H5P_DEFAULT, true, path);
 
     image = detail::take_hdf5_image(file, path);
   }

@@ -9,6 +9,7 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -22,6 +23,7 @@
 #include "io/atomic_file.h"
 #include "job/worker_event.h"
 #include "sim/moving_rate.h"
+#include "sim/overview.h"
 #include "sim/resume_point.h"
 #include "sim/tiling.h"
 #include "wind/regime.h"
@@ -114,12 +116,31 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
   constexpr auto order = fields::snapshot_order();
   const std::vector<fields::Id> layers(order.begin(), order.end());
   const std::string h5 = dir + "/snapshots/" + name + ".h5";
+  // The overview pyramid, reduced tile by tile (sim/overview.h), from the
+  // tile's terrain (12 bytes per cell of the tile while it is computed).
+  const int tile_ny = ctx.slab.ny;
+  const std::size_t tile_cells = static_cast<std::size_t>(ctx.slab.nx) * tile_ny;
+  std::vector<float> bedrock(tile_cells), sand(tile_cells), vegetation(tile_cells);
+  if (tile_cells > 0) {
+    sim.layer_rows(fields::kBedrock, 0, tile_ny, bedrock.data());
+    sim.layer_rows(fields::kSand, 0, tile_ny, sand.data());
+    sim.layer_rows(fields::kVegetation, 0, tile_ny, vegetation.data());
+  }
+  const io::OverviewPyramid pyramid =
+      overview_pyramid(ctx.cart, ctx.d, bedrock.data(), sand.data(), vegetation.data());
   io::write_snapshot_parallel(
       ctx.cart, h5, meta, layers,
       [&](fields::Id id, int y0, int y1, void* out) {
         sim.layer_rows(id, y0, y1, static_cast<float*>(out));
       },
-      ctx.slab, ctx.chunk_x, ctx.chunk_y);
+      ctx.slab, ctx.chunk_x, ctx.chunk_y, &pyramid);
+  // The preview is drawn from the finest overview level that fits it, which
+  // alone meets on rank 0: at most kPreviewMaxPx^2 blocks whatever the domain.
+  const int level = io::overview_level_for(meta.nx, meta.ny, io::kPreviewMaxPx);
+  io::OverviewLevel view;
+  if (previews)
+    view = gather_overview_level(ctx.cart, ctx.d, pyramid, level, bedrock.data(), sand.data(),
+                                 vegetation.data());
   if (!ctx.root()) return;
   io::write_xdmf(dir + "/snapshots/" + name + ".xdmf", name + ".h5", meta, layers);
   io::write_run_xdmf(dir);
@@ -127,13 +148,9 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
   if (previews) {
     png = dir + "/previews/" + name + ".png";
     const io::PreviewLabels labels = preview_labels(sim, meta);
-    // The coordinator has only its tile: the preview is made from the
-    // file (12 bytes per cell of the whole domain, on rank 0, for a moment).
-    const io::Snapshot whole = io::read_snapshot(h5, /*terrain_only=*/true);
-    const auto layer = [&](fields::Id id) { return whole[id].data(); };
-    io::write_preview_png(png, meta.nx, meta.ny, meta.cell_size_m, layer(fields::kBedrock),
-                          layer(fields::kSand), layer(fields::kVegetation), io::kPreviewMaxPx,
-                          &labels);
+    io::write_preview_png(png, view.nx, view.ny, std::ldexp(meta.cell_size_m, level),
+                          view.bedrock.data(), view.sand.data(), view.vegetation.data(),
+                          io::kPreviewMaxPx, &labels);
   }
   erg::v1::WorkerEvent e;
   e.set_step(sim.step_index());
@@ -489,18 +506,25 @@ class JobRun {
     first_ = sim_->step_index();
     stats0_ = sim_->exchange().stats();
     while (sim_->step_index() < steps_) {
+      const auto begin = Clock::now();
       sim_->step();
       const std::int64_t s = sim_->step_index();
       warn_if_capped(s);
       const bool last = s == steps_;
+      const auto before_files = Clock::now();
       write_due_files(s, last);
       const auto now = Clock::now();
-      const StepOutcome next = bcast(ctx_.root() ? decide(s, last, now) : StepOutcome{}, ctx_);
+      const StepOutcome decided = ctx_.root() ? decide(s, last, now) : StepOutcome{};
+      const auto before_bcast = Clock::now();
+      const StepOutcome next = bcast(decided, ctx_);
+      const auto after_bcast = Clock::now();
       moving_rate_.add(seconds(now - t0), s);
       const double rate = moving_rate_.steps_per_s();
       const double eta = moving_rate_.eta_s(steps_);
       if (next.report) report_progress(s, rate, eta, now);
       log_progress(s, last, rate, eta, now);
+      busy_s_ += seconds(before_files - begin) + seconds(before_bcast - now) +
+                 seconds(Clock::now() - after_bcast);
       if (next.steer) apply_steering();
       if (next.stop) return stop(s);
     }
@@ -651,16 +675,18 @@ class JobRun {
              m.allowed ? "" : ", switched off by ERG_CUDA_AWARE_MPI=0", ")\n");
   }
 
-  // Halo traffic per step since the loop began, the most any rank sent
-  // (messages, bytes) or staged between device and host. Collective.
-  std::array<long long, 3> halo_traffic_per_step() {
+  // Halo traffic per step since the loop began: the most any rank sent
+  // (messages, bytes) or staged between device and host, and the fewest
+  // messages of a rank. Collective.
+  std::array<long long, 4> halo_traffic_per_step() {
     const dist::Exchange::Stats st = sim_->exchange().stats();
     const std::int64_t ran = std::max<std::int64_t>(1, sim_->step_index() - first_);
     long long mine[3] = {(st.messages - stats0_.messages) / ran, (st.bytes - stats0_.bytes) / ran,
                          (st.host_staged_bytes - stats0_.host_staged_bytes) / ran};
-    std::array<long long, 3> most = {0, 0, 0};
-    MPI_Reduce(mine, most.data(), 3, MPI_LONG_LONG, MPI_MAX, 0, ctx_.comm);
-    return most;
+    std::array<long long, 4> out = {0, 0, 0, 0};
+    MPI_Reduce(mine, out.data(), 3, MPI_LONG_LONG, MPI_MAX, 0, ctx_.comm);
+    MPI_Reduce(mine, &out[3], 1, MPI_LONG_LONG, MPI_MIN, 0, ctx_.comm);
+    return out;
   }
 
   // The peak resident set of every rank since it started (state, work
@@ -683,9 +709,23 @@ class JobRun {
     return out;
   }
 
+  // Busy milliseconds per step of the loop (busy_s_): {rank 0's, the
+  // median rank's}. Collective; O(ranks) on rank 0, once per run.
+  std::array<double, 2> busy_ms_per_step() {
+    const double ran = static_cast<double>(std::max<std::int64_t>(1, sim_->step_index() - first_));
+    const double mine = 1000.0 * busy_s_ / ran;
+    std::vector<double> all(ctx_.root() ? static_cast<std::size_t>(ctx_.size) : 0);
+    MPI_Gather(&mine, 1, MPI_DOUBLE, all.data(), 1, MPI_DOUBLE, 0, ctx_.comm);
+    if (!ctx_.root()) return {0, 0};
+    std::vector<double> sorted = all;
+    std::sort(sorted.begin(), sorted.end());
+    return {all[0], sorted[sorted.size() / 2]};
+  }
+
   // The done event: totals, halo traffic, memory, time per stage. Collective.
   void report_done() {
-    const std::array<long long, 3> halo = halo_traffic_per_step();
+    const std::array<long long, 4> halo = halo_traffic_per_step();
+    const std::array<double, 2> busy = busy_ms_per_step();
     const std::array<long long, 2> rss = peak_memory();
     const double cells = static_cast<double>(ctx_.d.gnx) * static_cast<double>(ctx_.d.gny);
     const erg::v1::WorkerEvent::Totals end_totals = totals();
@@ -699,6 +739,9 @@ class JobRun {
     done.set_halo_bytes_per_step(halo[1]);
     done.set_halo_path(dist::halo_path_name(sim_->backend().halo_path()));
     done.set_host_staged_bytes_per_step(halo[2]);
+    done.set_halo_messages_min_rank_per_step(halo[3]);
+    done.set_step_ms_rank0(busy[0]);
+    done.set_step_ms_median_rank(busy[1]);
     done.set_peak_rss_bytes(rss[0]);
     done.set_peak_rss_bytes_max_rank(rss[1]);
     done.set_peak_rss_bytes_per_cell(static_cast<double>(rss[0]) / cells);
@@ -735,6 +778,7 @@ class JobRun {
   std::int64_t first_ = 0;            // the loop's first step
   erg::sim::MovingRate moving_rate_;  // steps/s and ETA of the progress events
   dist::Exchange::Stats stats0_{};
+  double busy_s_ = 0;  // this rank's busy time in the loop (busy_ms_per_step)
 };
 
 }  // namespace

@@ -1,0 +1,42 @@
+// SPDX-License-Identifier: Apache-2.0
+// The overview pyramid of a run's terrain (io.h OverviewPyramid), computed
+// where the cells are: each rank reduces its own tile, and the blocks that
+// straddle tiles are completed by their owners from the partial sums of the
+// tiles they overlap. Nothing of the size of the domain meets on one rank:
+// rank 0 assembles only the level a preview needs (gather_overview_level).
+//
+// Exactness. A block's mean is computed from exact integer sums of its cells:
+// bedrock and sand in units of 2^-32 m (every float32 height a snapshot holds
+// is a whole number of them: core/units.h), vegetation in units of 2^-64
+// (densities above 2^-41 exactly). Integer sums do not depend on the order
+// they are added in, so a level is bitwise the same for any tiling, rank
+// count and thread count; the division by the block's cell count happens once,
+// on the block's owner. A block's owner is the tile holding its first cell
+// (lowest x and y).
+#pragma once
+
+#include <mpi.h>
+
+#include "dist/decomposition.h"
+#include "io/io.h"
+
+namespace erg {
+
+// Levels 1 to io::overview_levels(gnx, gny) of the tiles' layers (owned
+// cells, row-major, float32 as written to snapshots; vegetation may be null:
+// none). Collective over `cart`, the periodic Cartesian communicator of the
+// tiling `d` (one rank: one tile that is the whole domain). Each level holds
+// the blocks this rank owns (possibly none).
+io::OverviewPyramid overview_pyramid(MPI_Comm cart, const dist::Decomposition& d,
+                                     const float* bedrock, const float* sand,
+                                     const float* vegetation);
+
+// Collective: the whole of level `level` on rank 0 of `cart` (empty
+// elsewhere), from each rank's blocks of it: `pyramid` for level >= 1, the
+// tile's cells for level 0.
+io::OverviewLevel gather_overview_level(MPI_Comm cart, const dist::Decomposition& d,
+                                        const io::OverviewPyramid& pyramid, int level,
+                                        const float* bedrock, const float* sand,
+                                        const float* vegetation);
+
+}  // namespace erg
