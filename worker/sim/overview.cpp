@@ -208,8 +208,7 @@ void tile_coords(MPI_Comm cart, int& ti, int& tj) {
 }  // namespace
 
 io::OverviewPyramid overview_pyramid(MPI_Comm cart, const dist::Decomposition& d,
-                                     const float* bedrock, const float* sand,
-                                     const float* vegetation) {
+                                     const TerrainRows& rows) {
   int ti = 0, tj = 0;
   tile_coords(cart, ti, tj);
   const int levels = io::overview_levels(d.gnx, d.gny);
@@ -224,14 +223,23 @@ io::OverviewPyramid overview_pyramid(MPI_Comm cart, const dist::Decomposition& d
     Partial cur{lv.touched(ti, tj), {}};
     cur.v.assign(static_cast<std::size_t>(cur.r.area()), Sums{});
     if (l == 1) {
-      for (int y = 0; y < ny; ++y)
-        for (int x = 0; x < nx; ++x) {
-          const std::size_t c = static_cast<std::size_t>(y) * nx + x;
-          Sums& s = cur.at((x0 + x) >> 1, (y0 + y) >> 1);
-          s.bedrock += fixed(bedrock[c], kHeightBits);
-          s.sand += fixed(sand[c], kHeightBits);
-          if (vegetation) s.vegetation += fixed(vegetation[c], kVegetationBits);
-        }
+      // A band of rows at a time (integer sums: the banding changes no bit).
+      const std::size_t band = static_cast<std::size_t>(nx) * kOverviewBandRows;
+      std::vector<float> bedrock(band), sand(band), vegetation(band);
+      for (int b0 = 0; b0 < ny; b0 += kOverviewBandRows) {
+        const int b1 = std::min(ny, b0 + kOverviewBandRows);
+        rows(0, b0, b1, bedrock.data());
+        rows(1, b0, b1, sand.data());
+        rows(2, b0, b1, vegetation.data());
+        for (int y = b0; y < b1; ++y)
+          for (int x = 0; x < nx; ++x) {
+            const std::size_t c = static_cast<std::size_t>(y - b0) * nx + x;
+            Sums& s = cur.at((x0 + x) >> 1, (y0 + y) >> 1);
+            s.bedrock += fixed(bedrock[c], kHeightBits);
+            s.sand += fixed(sand[c], kHeightBits);
+            s.vegetation += fixed(vegetation[c], kVegetationBits);
+          }
+      }
     } else {
       for (long long by = prev.r.y0; by < prev.r.y1; ++by)
         for (long long bx = prev.r.x0; bx < prev.r.x1; ++bx)
@@ -245,8 +253,7 @@ io::OverviewPyramid overview_pyramid(MPI_Comm cart, const dist::Decomposition& d
 
 io::OverviewLevel gather_overview_level(MPI_Comm cart, const dist::Decomposition& d,
                                         const io::OverviewPyramid& pyramid, int level,
-                                        const float* bedrock, const float* sand,
-                                        const float* vegetation) {
+                                        const TerrainRows& rows) {
   int rank = 0, size = 1, ti = 0, tj = 0;
   MPI_Comm_rank(cart, &rank);
   MPI_Comm_size(cart, &size);
@@ -256,12 +263,9 @@ io::OverviewLevel gather_overview_level(MPI_Comm cart, const dist::Decomposition
   const Level lv{d, level};
   if (level == 0) {
     const std::size_t n = static_cast<std::size_t>(d.nx(ti)) * d.ny(tj);
-    mine.assign(bedrock, bedrock + n);
-    mine.insert(mine.end(), sand, sand + n);
-    if (vegetation)
-      mine.insert(mine.end(), vegetation, vegetation + n);
-    else
-      mine.resize(3 * n, 0.0f);
+    mine.resize(3 * n);
+    if (n > 0)
+      for (int layer = 0; layer < 3; ++layer) rows(layer, 0, d.ny(tj), mine.data() + layer * n);
   } else {
     const io::OverviewLevel& l = pyramid.at(static_cast<std::size_t>(level - 1));
     mine = l.bedrock;

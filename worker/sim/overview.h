@@ -17,26 +17,34 @@
 
 #include <mpi.h>
 
+#include <functional>
+
 #include "dist/decomposition.h"
 #include "io/io.h"
 
 namespace erg {
 
-// Levels 1 to io::overview_levels(gnx, gny) of the tiles' layers (owned
-// cells, row-major, float32 as written to snapshots; vegetation may be null:
-// none). Collective over `cart`, the periodic Cartesian communicator of the
-// tiling `d` (one rank: one tile that is the whole domain). Each level holds
-// the blocks this rank owns (possibly none).
+// Rows [y0, y1) of the tile's owned cells of one layer (0 bedrock, 1 sand,
+// 2 vegetation), row-major, float32 as written to snapshots.
+using TerrainRows = std::function<void(int layer, int y0, int y1, float* out)>;
+
+// Rows of the tile read at once: the terrain is reduced a band at a time, so
+// a snapshot holds no copy of the tile's layers (3 x 4 bytes x 64 rows).
+inline constexpr int kOverviewBandRows = 64;
+
+// Levels 1 to io::overview_levels(gnx, gny) of the tiles' layers. Collective
+// over `cart`, the periodic Cartesian communicator of the tiling `d` (one
+// rank: one tile that is the whole domain). Each level holds the blocks this
+// rank owns (possibly none).
 io::OverviewPyramid overview_pyramid(MPI_Comm cart, const dist::Decomposition& d,
-                                     const float* bedrock, const float* sand,
-                                     const float* vegetation);
+                                     const TerrainRows& rows);
 
 // Collective: the whole of level `level` on rank 0 of `cart` (empty
 // elsewhere), from each rank's blocks of it: `pyramid` for level >= 1, the
-// tile's cells for level 0.
+// tile's cells for level 0 (only when the whole domain fits a preview, so
+// at most io::kPreviewMaxPx^2 cells meet on rank 0).
 io::OverviewLevel gather_overview_level(MPI_Comm cart, const dist::Decomposition& d,
                                         const io::OverviewPyramid& pyramid, int level,
-                                        const float* bedrock, const float* sand,
-                                        const float* vegetation);
+                                        const TerrainRows& rows);
 
 }  // namespace erg

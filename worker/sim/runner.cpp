@@ -117,17 +117,12 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
   const std::vector<fields::Id> layers(order.begin(), order.end());
   const std::string h5 = dir + "/snapshots/" + name + ".h5";
   // The overview pyramid, reduced tile by tile (sim/overview.h), from the
-  // tile's terrain (12 bytes per cell of the tile while it is computed).
-  const int tile_ny = ctx.slab.ny;
-  const std::size_t tile_cells = static_cast<std::size_t>(ctx.slab.nx) * tile_ny;
-  std::vector<float> bedrock(tile_cells), sand(tile_cells), vegetation(tile_cells);
-  if (tile_cells > 0) {
-    sim.layer_rows(fields::kBedrock, 0, tile_ny, bedrock.data());
-    sim.layer_rows(fields::kSand, 0, tile_ny, sand.data());
-    sim.layer_rows(fields::kVegetation, 0, tile_ny, vegetation.data());
-  }
-  const io::OverviewPyramid pyramid =
-      overview_pyramid(ctx.cart, ctx.d, bedrock.data(), sand.data(), vegetation.data());
+  // tile's terrain read a band of rows at a time.
+  const TerrainRows terrain = [&](int layer, int y0, int y1, float* out) {
+    constexpr fields::Id ids[3] = {fields::kBedrock, fields::kSand, fields::kVegetation};
+    sim.layer_rows(ids[layer], y0, y1, out);
+  };
+  const io::OverviewPyramid pyramid = overview_pyramid(ctx.cart, ctx.d, terrain);
   io::write_snapshot_parallel(
       ctx.cart, h5, meta, layers,
       [&](fields::Id id, int y0, int y1, void* out) {
@@ -138,9 +133,7 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
   // alone meets on rank 0: at most kPreviewMaxPx^2 blocks whatever the domain.
   const int level = io::overview_level_for(meta.nx, meta.ny, io::kPreviewMaxPx);
   io::OverviewLevel view;
-  if (previews)
-    view = gather_overview_level(ctx.cart, ctx.d, pyramid, level, bedrock.data(), sand.data(),
-                                 vegetation.data());
+  if (previews) view = gather_overview_level(ctx.cart, ctx.d, pyramid, level, terrain);
   if (!ctx.root()) return;
   io::write_xdmf(dir + "/snapshots/" + name + ".xdmf", name + ".h5", meta, layers);
   io::write_run_xdmf(dir);
