@@ -69,10 +69,11 @@ struct ManagerConfig {
 };
 
 // What a running worker holds per cell of its domain, all ranks together:
-// the largest peak measured at 4096² and beyond, with room for the part
-// that does not grow with the domain (README "Memory": 87 bytes per cell at
-// 4096², 70 a cell beyond; CPU backend, snapshots and checkpoints included).
-inline constexpr std::int64_t kJobBytesPerCell = 96;
+// the largest peak measured at 4096² and beyond, the part that does not
+// grow with the domain included (README "Memory": 114 bytes per cell at
+// 4096² on 2 ranks with the overview pyramid; CPU backend, snapshots and
+// checkpoints included), rounded up.
+inline constexpr std::int64_t kJobBytesPerCell = 120;
 
 class JobManager {
  public:
