@@ -8,6 +8,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "core/units.h"
@@ -87,21 +88,76 @@ struct Level {
   }
 };
 
-// Partial sums over the rectangle `r` of blocks (row-major).
-struct Partial {
-  Rect r;
-  std::vector<Sums> v;
-  Sums& at(long long bx, long long by) {
-    return v[static_cast<std::size_t>((by - r.y0) * r.width() + (bx - r.x0))];
+// A level's blocks of one tile, as the tile's rows stream past (bottom to
+// top): the partial sums of the block row being read, the means of the
+// blocks the tile owns, and the partial sums of the blocks it shares with
+// other tiles (only those: a block wholly inside the tile is final as soon
+// as its last row is read). Nothing here grows with the tile's area but the
+// means, 12 bytes per block.
+struct LevelStream {
+  Level lv;
+  Rect touched, owned;
+  long long cx0 = 0, cx1 = 0, cy0 = 0, cy1 = 0;  // the tile's cells [x0, x1) x [y0, y1)
+  std::vector<Sums> row;                         // the block row being read, over touched
+  std::unordered_map<long long, Sums> shared;    // blocks straddling a tile edge
+  io::OverviewLevel out;
+
+  LevelStream(const dist::Decomposition& d, int level, int ti, int tj)
+      : lv{d, level}, touched(lv.touched(ti, tj)), owned(lv.owned(ti, tj)) {
+    cx0 = d.x0(ti);
+    cx1 = cx0 + d.nx(ti);
+    cy0 = d.y0(tj);
+    cy1 = cy0 + d.ny(tj);
+    row.assign(static_cast<std::size_t>(touched.width()), Sums{});
+    out.level = level;
+    out.nx = static_cast<int>(lv.blocks_x());
+    out.ny = static_cast<int>(lv.blocks_y());
+    out.x0 = static_cast<int>(owned.x0);
+    out.y0 = static_cast<int>(owned.y0);
+    out.bnx = owned.empty() ? 0 : static_cast<int>(owned.width());
+    out.bny = owned.empty() ? 0 : static_cast<int>(owned.y1 - owned.y0);
+    const std::size_t n = static_cast<std::size_t>(owned.area());
+    out.bedrock.resize(n);
+    out.sand.resize(n);
+    out.vegetation.resize(n);
+  }
+  long long key(long long bx, long long by) const { return by * lv.blocks_x() + bx; }
+  Sums& at_row(long long bx) { return row[static_cast<std::size_t>(bx - touched.x0)]; }
+  // Whether some of the block's cells lie in another tile.
+  bool straddles(long long bx, long long by) const {
+    const long long s = lv.s();
+    return bx * s < cx0 || std::min<long long>(lv.d.gnx, (bx + 1) * s) > cx1 || by * s < cy0 ||
+           std::min<long long>(lv.d.gny, (by + 1) * s) > cy1;
+  }
+  void set_mean(long long bx, long long by, const Sums& sums) {
+    const std::size_t c =
+        static_cast<std::size_t>((by - owned.y0) * owned.width() + (bx - owned.x0));
+    const long long cells = lv.cells(bx, by);
+    out.bedrock[c] = mean(sums.bedrock, cells, kHeightBits);
+    out.sand[c] = mean(sums.sand, cells, kHeightBits);
+    out.vegetation[c] = mean(sums.vegetation, cells, kVegetationBits);
+  }
+  // The block row `by` is read: each block goes to its parent's row (the
+  // next level), then is final (a mean) or kept as shared.
+  void flush(long long by, LevelStream* parent) {
+    for (long long bx = touched.x0; bx < touched.x1; ++bx) {
+      Sums& s = at_row(bx);
+      if (parent) parent->at_row(bx >> 1) += s;
+      if (straddles(bx, by))
+        shared[key(bx, by)] = s;
+      else
+        set_mean(bx, by, s);
+      s = Sums{};
+    }
   }
 };
 
-// The values of `from` in `r` (inside from.r), row-major.
-std::vector<Sums> cut(Partial& from, const Rect& r) {
+// The values of the shared blocks in `r`, row-major.
+std::vector<Sums> cut(const LevelStream& from, const Rect& r) {
   std::vector<Sums> out;
   out.reserve(static_cast<std::size_t>(r.area()));
   for (long long by = r.y0; by < r.y1; ++by)
-    for (long long bx = r.x0; bx < r.x1; ++bx) out.push_back(from.at(bx, by));
+    for (long long bx = r.x0; bx < r.x1; ++bx) out.push_back(from.shared.at(from.key(bx, by)));
   return out;
 }
 
@@ -117,12 +173,11 @@ int bytes_of(long long blocks) {
   return static_cast<int>(b);
 }
 
-// Completes the blocks this rank owns at one level: its own partial sums
-// plus those of every other tile that has cells in them (integer sums: the
-// order of the messages does not matter).
-Partial complete(MPI_Comm cart, const Level& lv, int ti, int tj, Partial& mine) {
-  Partial own{lv.owned(ti, tj), {}};
-  own.v = own.r.empty() ? std::vector<Sums>{} : cut(mine, own.r);
+// Completes the shared blocks this rank owns at one level: its own partial
+// sums plus those of every other tile that has cells in them (integer sums:
+// the order of the messages does not matter), then their means.
+void complete(MPI_Comm cart, LevelStream& st, int ti, int tj) {
+  const Level& lv = st.lv;
   std::vector<MPI_Request> requests;
   std::vector<std::vector<Sums>> outgoing, incoming;
   std::vector<Rect> incoming_rect;
@@ -131,12 +186,12 @@ Partial complete(MPI_Comm cart, const Level& lv, int ti, int tj, Partial& mine) 
   int i0, i1, j0, j1;
   // Receive: from the tiles with cells in my blocks (all buffers sized
   // before any receive is posted: none moves afterwards).
-  if (!own.r.empty()) {
-    lv.tiles_of(own.r, i0, i1, j0, j1);
+  if (!st.owned.empty()) {
+    lv.tiles_of(st.owned, i0, i1, j0, j1);
     for (int j = j0; j <= j1; ++j)
       for (int i = i0; i <= i1; ++i) {
         if (i == ti && j == tj) continue;
-        const Rect r = intersect(lv.touched(i, j), own.r);
+        const Rect r = intersect(lv.touched(i, j), st.owned);
         if (r.empty()) continue;
         incoming_rect.push_back(r);
         incoming_rank.push_back(rank_of(cart, i, j));
@@ -149,15 +204,15 @@ Partial complete(MPI_Comm cart, const Level& lv, int ti, int tj, Partial& mine) 
               tag, cart, &requests.back());
   }
   // Send: my cells in the blocks other tiles own.
-  lv.tiles_of(mine.r, i0, i1, j0, j1);
+  lv.tiles_of(st.touched, i0, i1, j0, j1);
   outgoing.reserve(static_cast<std::size_t>(i1 - i0 + 1) * static_cast<std::size_t>(j1 - j0 + 1));
   requests.reserve(requests.size() + outgoing.capacity());
   for (int j = j0; j <= j1; ++j)
     for (int i = i0; i <= i1; ++i) {
       if (i == ti && j == tj) continue;
-      const Rect r = intersect(lv.owned(i, j), mine.r);
+      const Rect r = intersect(lv.owned(i, j), st.touched);
       if (r.empty()) continue;
-      outgoing.push_back(cut(mine, r));
+      outgoing.push_back(cut(st, r));
       requests.emplace_back();
       MPI_Isend(outgoing.back().data(), bytes_of(r.area()), MPI_BYTE, rank_of(cart, i, j), tag,
                 cart, &requests.back());
@@ -167,34 +222,14 @@ Partial complete(MPI_Comm cart, const Level& lv, int ti, int tj, Partial& mine) 
     const Rect& r = incoming_rect[k];
     std::size_t c = 0;
     for (long long by = r.y0; by < r.y1; ++by)
-      for (long long bx = r.x0; bx < r.x1; ++bx) own.at(bx, by) += incoming[k][c++];
+      for (long long bx = r.x0; bx < r.x1; ++bx) st.shared.at(st.key(bx, by)) += incoming[k][c++];
   }
-  return own;
-}
-
-io::OverviewLevel means(const Level& lv, const Partial& own) {
-  io::OverviewLevel out;
-  out.level = lv.level;
-  out.nx = static_cast<int>(lv.blocks_x());
-  out.ny = static_cast<int>(lv.blocks_y());
-  out.x0 = static_cast<int>(own.r.x0);
-  out.y0 = static_cast<int>(own.r.y0);
-  out.bnx = own.r.empty() ? 0 : static_cast<int>(own.r.width());
-  out.bny = own.r.empty() ? 0 : static_cast<int>(own.r.y1 - own.r.y0);
-  const std::size_t n = static_cast<std::size_t>(own.r.area());
-  out.bedrock.resize(n);
-  out.sand.resize(n);
-  out.vegetation.resize(n);
-  std::size_t c = 0;
-  for (long long by = own.r.y0; by < own.r.y1 && n; ++by)
-    for (long long bx = own.r.x0; bx < own.r.x1; ++bx, ++c) {
-      const long long cells = lv.cells(bx, by);
-      const Sums& s = own.v[c];
-      out.bedrock[c] = mean(s.bedrock, cells, kHeightBits);
-      out.sand[c] = mean(s.sand, cells, kHeightBits);
-      out.vegetation[c] = mean(s.vegetation, cells, kVegetationBits);
-    }
-  return out;
+  // The shared blocks I own are now whole.
+  const Rect& o = st.owned;
+  for (const auto& [k, sums] : st.shared) {
+    const long long bx = k % lv.blocks_x(), by = k / lv.blocks_x();
+    if (bx >= o.x0 && bx < o.x1 && by >= o.y0 && by < o.y1) st.set_mean(bx, by, sums);
+  }
 }
 
 void tile_coords(MPI_Comm cart, int& ti, int& tj) {
@@ -212,41 +247,47 @@ io::OverviewPyramid overview_pyramid(MPI_Comm cart, const dist::Decomposition& d
   int ti = 0, tj = 0;
   tile_coords(cart, ti, tj);
   const int levels = io::overview_levels(d.gnx, d.gny);
-  io::OverviewPyramid pyramid;
-  if (levels == 0) return pyramid;
-  // Level 1 from the cells, each further level from the one before: a
-  // block's partial sum is the sum of its four children's.
-  Partial prev;
+  if (levels == 0) return {};
+  // Every level in one pass over the tile's rows, a band at a time: each cell
+  // goes into its level-1 block; a block row of level l is read when its last
+  // cell row is, and then goes into its parent's row (a block's partial sum
+  // is the sum of its four children's). Integer sums: neither the banding nor
+  // the order changes a bit.
+  std::vector<LevelStream> level;
+  level.reserve(static_cast<std::size_t>(levels));
+  for (int l = 1; l <= levels; ++l) level.emplace_back(d, l, ti, tj);
   const int x0 = d.x0(ti), y0 = d.y0(tj), nx = d.nx(ti), ny = d.ny(tj);
-  for (int l = 1; l <= levels; ++l) {
-    const Level lv{d, l};
-    Partial cur{lv.touched(ti, tj), {}};
-    cur.v.assign(static_cast<std::size_t>(cur.r.area()), Sums{});
-    if (l == 1) {
-      // A band of rows at a time (integer sums: the banding changes no bit).
-      const std::size_t band = static_cast<std::size_t>(nx) * kOverviewBandRows;
-      std::vector<float> bedrock(band), sand(band), vegetation(band);
-      for (int b0 = 0; b0 < ny; b0 += kOverviewBandRows) {
-        const int b1 = std::min(ny, b0 + kOverviewBandRows);
-        rows(0, b0, b1, bedrock.data());
-        rows(1, b0, b1, sand.data());
-        rows(2, b0, b1, vegetation.data());
-        for (int y = b0; y < b1; ++y)
-          for (int x = 0; x < nx; ++x) {
-            const std::size_t c = static_cast<std::size_t>(y - b0) * nx + x;
-            Sums& s = cur.at((x0 + x) >> 1, (y0 + y) >> 1);
-            s.bedrock += fixed(bedrock[c], kHeightBits);
-            s.sand += fixed(sand[c], kHeightBits);
-            s.vegetation += fixed(vegetation[c], kVegetationBits);
-          }
+  const std::size_t band = static_cast<std::size_t>(nx) * kOverviewBandRows;
+  std::vector<float> bedrock(band), sand(band), vegetation(band);
+  LevelStream& first = level.front();
+  for (int b0 = 0; b0 < ny; b0 += kOverviewBandRows) {
+    const int b1 = std::min(ny, b0 + kOverviewBandRows);
+    rows(0, b0, b1, bedrock.data());
+    rows(1, b0, b1, sand.data());
+    rows(2, b0, b1, vegetation.data());
+    for (int y = b0; y < b1; ++y) {
+      for (int x = 0; x < nx; ++x) {
+        const std::size_t c = static_cast<std::size_t>(y - b0) * nx + x;
+        Sums& s = first.at_row((x0 + x) >> 1);
+        s.bedrock += fixed(bedrock[c], kHeightBits);
+        s.sand += fixed(sand[c], kHeightBits);
+        s.vegetation += fixed(vegetation[c], kVegetationBits);
       }
-    } else {
-      for (long long by = prev.r.y0; by < prev.r.y1; ++by)
-        for (long long bx = prev.r.x0; bx < prev.r.x1; ++bx)
-          cur.at(bx >> 1, by >> 1) += prev.at(bx, by);
+      // Levels whose block row ends with this cell row (a level-(l+1) row
+      // ends only where a level-l row does; the tile's last row ends all).
+      const long long gy = y0 + y;
+      for (int l = 1; l <= levels; ++l) {
+        if (((gy + 1) & ((1LL << l) - 1)) != 0 && y != ny - 1) break;
+        level[l - 1].flush(gy >> l, l < levels ? &level[l] : nullptr);
+      }
     }
-    pyramid.push_back(means(lv, complete(cart, lv, ti, tj, cur)));
-    prev = std::move(cur);
+  }
+  io::OverviewPyramid pyramid;
+  pyramid.reserve(level.size());
+  for (LevelStream& st : level) {
+    complete(cart, st, ti, tj);
+    pyramid.push_back(std::move(st.out));
+    st.shared.clear();
   }
   return pyramid;
 }
