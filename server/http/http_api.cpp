@@ -12,6 +12,7 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "auth/request_checks.h"
@@ -469,6 +470,27 @@ HttpApi::HttpApi(JobManager& manager, Tokens& tokens, Metrics& metrics, const st
   });
 }
 
+namespace {
+// A snapshot's time and relief: from the ground range the worker reduced over
+// its tiles (attributes: bytes, whatever the domain), or, in snapshots
+// written before it did, from the layers. Empty: no cells.
+std::optional<std::pair<double, double>> relief_of(const std::string& path) {
+  const io::SnapshotMeta meta = io::read_snapshot_meta(path);
+  if (std::isfinite(meta.ground_min_m) && std::isfinite(meta.ground_max_m))
+    return std::pair{meta.time_days, meta.ground_max_m - meta.ground_min_m};
+  const io::Snapshot snap = io::read_snapshot(path, true);
+  const auto& b = snap[fields::kBedrock];
+  const auto& sand = snap[fields::kSand];
+  if (b.empty()) return std::nullopt;
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+  for (std::size_t i = 0; i < b.size() && i < sand.size(); ++i) {
+    lo = std::min(lo, b[i] + sand[i]);
+    hi = std::max(hi, b[i] + sand[i]);
+  }
+  return std::pair{snap.meta.time_days, static_cast<double>(hi - lo)};
+}
+}  // namespace
+
 // Relief (highest minus lowest ground, bedrock + sand) of each snapshot of
 // a job, read from its snapshot files once and kept: [{step, time_days,
 // relief_m}]. A snapshot that cannot be read (deleted, being written) is
@@ -484,16 +506,10 @@ std::string HttpApi::relief_json(const erg::v1::Job& job) {
         v = it->second;
       } else {
         try {
-          const io::Snapshot snap = io::read_snapshot(mgr_.snapshot_path(job.id(), step), true);
-          const auto& b = snap[fields::kBedrock];
-          const auto& sand = snap[fields::kSand];
-          float lo = std::numeric_limits<float>::infinity(), hi = -lo;
-          for (std::size_t i = 0; i < b.size() && i < sand.size(); ++i) {
-            lo = std::min(lo, b[i] + sand[i]);
-            hi = std::max(hi, b[i] + sand[i]);
-          }
-          if (b.empty()) continue;
-          v = {snap.meta.time_days, static_cast<double>(hi - lo)};
+          const std::optional<std::pair<double, double>> r =
+              relief_of(mgr_.snapshot_path(job.id(), step));
+          if (!r) continue;
+          v = *r;
           known[step] = v;
         } catch (const std::exception&) {
           continue;

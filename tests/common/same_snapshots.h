@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
 
 #include "io/io.h"
@@ -27,6 +28,18 @@ inline void expect_same_snapshot(const std::string& a, const std::string& b,
   EXPECT_EQ(sa.meta.sand_units_total, sb.meta.sand_units_total) << what;
   EXPECT_EQ(sa.meta.bedrock_units_total, sb.meta.bedrock_units_total) << what;
   EXPECT_EQ(sa.meta.airborne_units_total, sb.meta.airborne_units_total) << what;
+  // The ground range is a reduction over the tiles: the range of the layers.
+  for (const auto* s : {&sa, &sb}) {
+    const auto& bedrock = (*s)[erg::fields::kBedrock];
+    const auto& sand = (*s)[erg::fields::kSand];
+    float lo = bedrock[0] + sand[0], hi = lo;
+    for (std::size_t c = 0; c < bedrock.size(); ++c) {
+      lo = std::min(lo, bedrock[c] + sand[c]);
+      hi = std::max(hi, bedrock[c] + sand[c]);
+    }
+    EXPECT_EQ(s->meta.ground_min_m, static_cast<double>(lo)) << what << ": ground_min_m";
+    EXPECT_EQ(s->meta.ground_max_m, static_cast<double>(hi)) << what << ": ground_max_m";
+  }
   const int levels = erg::io::overview_levels(sa.meta.nx, sa.meta.ny);
   for (int l = 1; l <= levels; ++l) {
     const auto la = erg::io::read_overview_level(a, l);

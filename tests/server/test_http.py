@@ -2,6 +2,7 @@
 """ergd's HTTP side: every route needs a token, /api/jobs is the tenant's,
 /metrics is Prometheus text, and the dashboard, loaded in headless Chromium
 (Debian's), shows the job's row and its preview image."""
+import glob
 import json
 import os
 import shutil
@@ -11,6 +12,8 @@ import unittest
 import urllib.error
 import urllib.parse
 import urllib.request
+
+import h5py
 
 from ergd_fixture import ALICE, BOB, OPERATOR, ErgdTest, NoRedirect, spec_json
 
@@ -99,6 +102,27 @@ class Http(ErgdTest):
         status, png, _ = get(self.ergd.http + "/api/jobs/%s/preview.png" % self.job.id, ALICE)
         self.assertEqual(status, 200)
         self.assertEqual(png[:8], b"\x89PNG\r\n\x1a\n")
+
+    def test_relief_is_each_snapshots_ground_range(self):
+        # /api/jobs/ID/relief reads the ground range the worker reduced over
+        # its tiles (root attributes ground_min_m, ground_max_m), not the
+        # layers: it must equal the range of the layers themselves.
+        status, body, _ = get(self.ergd.http + "/api/jobs/%s/relief" % self.job.id, ALICE)
+        self.assertEqual(status, 200)
+        relief = {int(r["step"]): r["relief_m"] for r in json.loads(body)}
+        self.assertEqual(sorted(relief), [0, 10, 20, 30])
+        files = glob.glob(os.path.join(self.ergd.data, "jobs", self.job.id, "run", "snapshots",
+                                       "step_*.h5"))
+        self.assertEqual(len(files), 4)
+        for path in files:
+            with h5py.File(path, "r") as f:
+                ground = f["bedrock"][0] + f["sand"][0]  # float32, as the worker adds them
+                self.assertEqual(f.attrs["ground_min_m"], float(ground.min()))
+                self.assertEqual(f.attrs["ground_max_m"], float(ground.max()))
+                step = int(f.attrs["step"])
+            self.assertAlmostEqual(relief[step], float(ground.max()) - float(ground.min()),
+                                   delta=1e-6, msg=path)
+        self.assertGreater(max(relief.values()), 0)
 
     def test_metrics_are_prometheus_text(self):
         # An operator token reads every series (a tenant's only its own:

@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -49,6 +50,12 @@ struct SnapshotMeta {
   double threshold_mps = 0, reference_shear_velocity_mps = 0;
   double calibration_flux_m2_per_step = 0, calibration_law_flux_m2_per_s = 0;
   std::string flux_law;
+  // The lowest and highest ground (bedrock + sand, float32 metres as the
+  // layers hold them) over the whole domain, from a reduction over the tiles
+  // (sim/overview.h): a dashboard's relief without reading the layers. NaN:
+  // not known (not written).
+  double ground_min_m = std::numeric_limits<double>::quiet_NaN();
+  double ground_max_m = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The values of one snapshot layer at the owned cells, row-major: data[stride
@@ -139,6 +146,8 @@ struct Snapshot {
   std::vector<float>& operator[](fields::Id id) { return layers[static_cast<std::size_t>(id)]; }
 };
 Snapshot read_snapshot(const std::string& path, bool terrain_only = false);
+// The root attributes alone (no layer is read): kilobytes for any domain.
+SnapshotMeta read_snapshot_meta(const std::string& path);
 
 // ---- heightmaps --------------------------------------------------------------
 // One float32 dataset /height [ny][nx] (row 0 = y = 0, metres), deflated,

@@ -5,6 +5,7 @@
 // is documented in README.md; keep the two in step.
 #include <algorithm>
 #include <climits>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -83,6 +84,10 @@ void detail::write_snapshot_attrs(hid_t fid, const SnapshotMeta& meta, const std
   // Fixed by the model: the domain is a torus and all lengths are metres.
   write_attr_str(fid, "periodic", "xy", path);
   write_attr_str(fid, "units", "m", path);
+  if (std::isfinite(meta.ground_min_m) && std::isfinite(meta.ground_max_m)) {
+    write_attr_f64(fid, "ground_min_m", meta.ground_min_m, path);
+    write_attr_f64(fid, "ground_max_m", meta.ground_max_m, path);
+  }
   write_physical_attrs(fid, meta, path);
 }
 
@@ -192,13 +197,10 @@ void write_snapshot(const std::string& path, const SnapshotMeta& meta, const Sna
   out.commit();
 }
 
-Snapshot read_snapshot(const std::string& path, bool terrain_only) {
-  detail::Hdf5Guard guard;
-  Hid file = detail::open_hdf5_readonly(path, "snapshot");
-  const hid_t fid = file.get();
-
-  Snapshot s;
-  SnapshotMeta& m = s.meta;
+namespace {
+// The root attributes of an open snapshot.
+SnapshotMeta read_meta(hid_t fid, const std::string& path) {
+  SnapshotMeta m;
   m.nx = read_extent(fid, "nx", path);
   m.ny = read_extent(fid, "ny", path);
   m.step = detail::read_attr_i64(fid, "step", path);
@@ -213,6 +215,28 @@ Snapshot read_snapshot(const std::string& path, bool terrain_only) {
   m.seed = detail::read_attr_u64(fid, "seed", path);
   m.backend = detail::read_attr_str(fid, "backend", path);
   if (H5Aexists(fid, "time_s") > 0) m.time_s = detail::read_attr_f64(fid, "time_s", path);
+  if (H5Aexists(fid, "ground_min_m") > 0 && H5Aexists(fid, "ground_max_m") > 0) {
+    m.ground_min_m = detail::read_attr_f64(fid, "ground_min_m", path);
+    m.ground_max_m = detail::read_attr_f64(fid, "ground_max_m", path);
+  }
+  return m;
+}
+}  // namespace
+
+SnapshotMeta read_snapshot_meta(const std::string& path) {
+  detail::Hdf5Guard guard;
+  Hid file = detail::open_hdf5_readonly(path, "snapshot");
+  return read_meta(file.get(), path);
+}
+
+Snapshot read_snapshot(const std::string& path, bool terrain_only) {
+  detail::Hdf5Guard guard;
+  Hid file = detail::open_hdf5_readonly(path, "snapshot");
+  const hid_t fid = file.get();
+
+  Snapshot s;
+  SnapshotMeta& m = s.meta;
+  m = read_meta(fid, path);
 
   const hsize_t ny = static_cast<hsize_t>(m.ny), nx = static_cast<hsize_t>(m.nx);
   auto layer = [&](fields::Id id) { s[id] = read_layer(fid, fields::info(id).name, ny, nx, path); };

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -243,11 +244,10 @@ void tile_coords(MPI_Comm cart, int& ti, int& tj) {
 }  // namespace
 
 io::OverviewPyramid overview_pyramid(MPI_Comm cart, const dist::Decomposition& d,
-                                     const TerrainRows& rows) {
+                                     const TerrainRows& rows, GroundRange* ground) {
   int ti = 0, tj = 0;
   tile_coords(cart, ti, tj);
   const int levels = io::overview_levels(d.gnx, d.gny);
-  if (levels == 0) return {};
   // Every level in one pass over the tile's rows, a band at a time: each cell
   // goes into its level-1 block; a block row of level l is read when its last
   // cell row is, and then goes into its parent's row (a block's partial sum
@@ -259,16 +259,23 @@ io::OverviewPyramid overview_pyramid(MPI_Comm cart, const dist::Decomposition& d
   const int x0 = d.x0(ti), y0 = d.y0(tj), nx = d.nx(ti), ny = d.ny(tj);
   const std::size_t band = static_cast<std::size_t>(nx) * kOverviewBandRows;
   std::vector<float> bedrock(band), sand(band), vegetation(band);
-  LevelStream& first = level.front();
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
   for (int b0 = 0; b0 < ny; b0 += kOverviewBandRows) {
     const int b1 = std::min(ny, b0 + kOverviewBandRows);
     rows(0, b0, b1, bedrock.data());
     rows(1, b0, b1, sand.data());
     rows(2, b0, b1, vegetation.data());
+    if (ground)
+      for (std::size_t c = 0; c < static_cast<std::size_t>(b1 - b0) * nx; ++c) {
+        const float h = bedrock[c] + sand[c];
+        lo = std::min(lo, h);
+        hi = std::max(hi, h);
+      }
+    if (levels == 0) continue;  // a domain of one cell: no level
     for (int y = b0; y < b1; ++y) {
       for (int x = 0; x < nx; ++x) {
         const std::size_t c = static_cast<std::size_t>(y - b0) * nx + x;
-        Sums& s = first.at_row((x0 + x) >> 1);
+        Sums& s = level.front().at_row((x0 + x) >> 1);
         s.bedrock += fixed(bedrock[c], kHeightBits);
         s.sand += fixed(sand[c], kHeightBits);
         s.vegetation += fixed(vegetation[c], kVegetationBits);
@@ -281,6 +288,10 @@ io::OverviewPyramid overview_pyramid(MPI_Comm cart, const dist::Decomposition& d
         level[l - 1].flush(gy >> l, l < levels ? &level[l] : nullptr);
       }
     }
+  }
+  if (ground) {
+    MPI_Allreduce(&lo, &ground->min_m, 1, MPI_FLOAT, MPI_MIN, cart);
+    MPI_Allreduce(&hi, &ground->max_m, 1, MPI_FLOAT, MPI_MAX, cart);
   }
   io::OverviewPyramid pyramid;
   pyramid.reserve(level.size());

@@ -32,12 +32,20 @@ using TerrainRows = std::function<void(int layer, int y0, int y1, float* out)>;
 // a snapshot holds no copy of the tile's layers (3 x 4 bytes x 64 rows).
 inline constexpr int kOverviewBandRows = 64;
 
+// The lowest and highest ground, bedrock + sand in float32 metres (as a
+// reader of the layers adds them), over the whole domain: min and max are
+// exact, so a reduction gives the same bits on any tiling.
+struct GroundRange {
+  float min_m = 0, max_m = 0;
+};
+
 // Levels 1 to io::overview_levels(gnx, gny) of the tiles' layers. Collective
 // over `cart`, the periodic Cartesian communicator of the tiling `d` (one
 // rank: one tile that is the whole domain). Each level holds the blocks this
-// rank owns (possibly none).
+// rank owns (possibly none). With `ground`, the domain's ground range too,
+// from the same read of the rows, on every rank.
 io::OverviewPyramid overview_pyramid(MPI_Comm cart, const dist::Decomposition& d,
-                                     const TerrainRows& rows);
+                                     const TerrainRows& rows, GroundRange* ground = nullptr);
 
 // Collective: the whole of level `level` on rank 0 of `cart` (empty
 // elsewhere), from each rank's blocks of it: `pyramid` for level >= 1, the

@@ -122,7 +122,10 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
     constexpr fields::Id ids[3] = {fields::kBedrock, fields::kSand, fields::kVegetation};
     sim.layer_rows(ids[layer], y0, y1, out);
   };
-  const io::OverviewPyramid pyramid = overview_pyramid(ctx.cart, ctx.d, terrain);
+  GroundRange ground;
+  const io::OverviewPyramid pyramid = overview_pyramid(ctx.cart, ctx.d, terrain, &ground);
+  meta.ground_min_m = ground.min_m;
+  meta.ground_max_m = ground.max_m;
   io::write_snapshot_parallel(
       ctx.cart, h5, meta, layers,
       [&](fields::Id id, int y0, int y1, void* out) {
