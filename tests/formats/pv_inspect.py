@@ -60,8 +60,9 @@ for t in (times or [None]):
                 "point": list(d.GetPoint(k)),
                 "sand": pd.GetArray("sand").GetValue(k),
                 "height": pd.GetArray("height").GetValue(k),
-                "wind": list(pd.GetArray("wind").GetTuple3(k)),
             }
+            if pd.GetArray("wind"):  # overview levels have no wind
+                samples[f"{i},{j}"]["wind"] = list(pd.GetArray("wind").GetTuple3(k))
     steps.append({
         "time": t,
         "type": d.GetClassName(),

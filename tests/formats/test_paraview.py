@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: Apache-2.0
 """ParaView opens erg's XDMF as its users expect: each snapshot in the X-Y
 plane with node data at the cell centres, height ready for Warp By Scalar
-along +Z, and DIR/run.xdmf one animated run. ParaView's own pvbatch reads the
+along +Z, DIR/run.xdmf one animated run, and DIR/overview.xdmf the run at its
+overview level. ParaView's own pvbatch reads the
 files (tests/formats/pv_inspect.py) and what it sees is checked against the
 snapshots read by h5py. A warped, coloured screenshot is rendered under
 xvfb-run (ERG_PARAVIEW_SCREENSHOT=FILE keeps a copy; README's
@@ -13,6 +14,7 @@ import subprocess
 import tempfile
 import unittest
 
+import h5py
 import numpy as np
 from PIL import Image
 
@@ -102,6 +104,30 @@ class ParaView(unittest.TestCase):
         seen = pvbatch(path[:-3] + ".xdmf")
         self.assertEqual(seen["times"], [10.0 * step])
         self.check_step(seen["steps"][0], self.files[-1])
+
+    def test_overview_xdmf_is_the_run_at_its_preview_level(self):
+        # DIR/overview.xdmf: every snapshot's overview level (the preview's,
+        # at least 1), a point per block, so a run too large for ParaView
+        # still opens. 96 x 64 cells: every block of level 1 is whole.
+        seen = pvbatch(os.path.join(self.run_dir, "overview.xdmf"))
+        self.assertEqual(seen["times"], [float(h["time"][0]) for h in self.files])
+        for (_, path), step in zip(self.snaps, seen["steps"]):
+            with h5py.File(path, "r") as f:
+                g = f["overview/level_1"]
+                x, y = g["x"][...], g["y"][...]
+                layers = {n: g[n][0] for n in ("bedrock", "sand", "vegetation")}
+            with self.subTest(path=path):
+                self.assertEqual(step["type"], "vtkImageData")
+                self.assertEqual(step["dimensions"], [len(x), len(y), 1])
+                self.assertEqual(step["bounds"], [x[0], x[-1], y[0], y[-1], 0.0, 0.0])
+                self.assertEqual(set(step["arrays"]), {"height", "bedrock", "sand", "vegetation"})
+                for n, v in layers.items():
+                    self.assertEqual(step["arrays"][n]["range"][0], [float(v.min()), float(v.max())])
+                # Block (i, j) is at its centre, from the level's own coordinates.
+                i, j = len(x) // 3, len(y) // 2
+                s = step["samples"]["%d,%d" % (i, j)]
+                self.assertEqual(s["point"], [x[i], y[j], 0.0])
+                self.assertEqual(s["sand"], float(layers["sand"][j, i]))
 
     def test_screenshot_is_a_picture(self):
         img = np.asarray(Image.open(self.shot).convert("RGB")).astype(int)

@@ -80,6 +80,11 @@ def drain(r):
     return out.lstrip(b"x").decode()
 
 
+def sidecars(h5_name):
+    """The XDMF sidecars of a snapshot, sorted: its overview level's and its own."""
+    return [h5_name[:-3] + ".overview.xdmf", h5_name[:-3] + ".xdmf"]
+
+
 class CliTest(ErgdTest):
     """Runs `erg` with ERG_SERVER/ERG_TOKEN pointing at this class's ergd."""
 
@@ -178,9 +183,10 @@ class Cli(CliTest):
         self.assertEqual(out, latest + "\n")
         # A run directory like erg run's; no .part left.
         self.assertEqual(sorted(os.listdir(self.fetch_dir())),
-                         ["job.json", "run.xdmf", "snapshots"])
+                         ["job.json", "overview.xdmf", "run.xdmf", "snapshots"])
         self.assertEqual(sorted(os.listdir(self.fetched())),
-                         ["step_00000040.h5", "step_00000040.xdmf"])
+                         ["step_00000040.h5", "step_00000040.overview.xdmf",
+                          "step_00000040.xdmf"])
         self.assertSameSnapshot(latest, os.path.join(self.reference(), "step_00000040.h5"))
         # All of them: the one already here is verified, not fetched again.
         code, out, err = self.erg("fetch", job_id, "--all", "--out", self.fetch_dir())
@@ -189,7 +195,8 @@ class Cli(CliTest):
         self.assertEqual(out.splitlines(), [self.fetched(n) for n in names])
         self.assertEqual(err.count("already present and verified"), 1, err)
         self.assertEqual(sorted(os.listdir(self.fetched())),
-                         sorted(names + [n[:-3] + ".xdmf" for n in names]))
+                         sorted(names + [n[:-3] + ext for n in names
+                                         for ext in (".xdmf", ".overview.xdmf")]))
         for n in names:
             self.assertSameSnapshot(self.fetched(n), os.path.join(self.reference(), n))
         self.check_fetched_run_directory(job_id, names)
@@ -484,7 +491,7 @@ class Cli(CliTest):
         with open(final, "rb") as f:
             self.assertEqual(sha256(f.read()), first.sha256)
         self.assertEqual(sorted(os.listdir(snaps)),  # .part and .sha256 gone
-                         [first.name, first.name[:-3] + ".xdmf"])
+                         [first.name] + sidecars(first.name))
 
     def test_fetch_resumes_a_part_and_refuses_a_corrupt_one(self):
         job_id, first, data = self.big_job()
@@ -512,7 +519,7 @@ class Cli(CliTest):
         self.assertEqual((code, out), (1, ""), err)
         self.assertIn("erg: resuming %s at byte 700000" % first.name, err)
         self.assertIn("sha256 mismatch for %s" % first.name, err)
-        self.assertEqual(os.listdir(snaps), [first.name[:-3] + ".xdmf"])
+        self.assertEqual(sorted(os.listdir(snaps)), sidecars(first.name))
         # And then a clean download.
         code, out, err = self.erg("fetch", job_id, "--step", "1", "--out", out_dir)
         self.assertEqual(code, 0, err)
@@ -526,7 +533,7 @@ class Cli(CliTest):
         self.assertIn("erg: resuming %s at byte %d" % (first.name, len(data)), err)
         with open(out.strip(), "rb") as f:
             self.assertEqual(f.read(), data)
-        self.assertEqual(sorted(os.listdir(snaps)), [first.name, first.name[:-3] + ".xdmf"])
+        self.assertEqual(sorted(os.listdir(snaps)), [first.name] + sidecars(first.name))
         # A .part of another file (its recorded sha256 differs): thrown away.
         os.remove(out.strip())
         with open(part, "wb") as f:
@@ -767,7 +774,7 @@ class Restart(CliTest):
         with open(final, "rb") as f:
             self.assertEqual(f.read(), data)
         self.assertEqual(sorted(os.listdir(os.path.dirname(final))),
-                         [first.name, first.name[:-3] + ".xdmf"])
+                         [first.name] + sidecars(first.name))
 
 
 if __name__ == "__main__":

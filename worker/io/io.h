@@ -126,9 +126,19 @@ std::vector<fields::Id> snapshot_layer_ids(const SnapshotFields& f);
 // The sidecar of an existing snapshot file, next to it (".h5" -> ".xdmf"),
 // from the file's own attributes and datasets (erg fetch).
 void write_xdmf_for(const std::string& h5_path);
+// The sidecar of one overview level of a snapshot ("step_N.overview.xdmf"):
+// a node per block on the level's spacing, with its bedrock, sand,
+// vegetation and height, so ParaView opens a run of any size at a size it
+// can draw. Atomic.
+void write_overview_xdmf(const std::string& xdmf_path, const std::string& h5_name,
+                         const SnapshotMeta& meta, int level);
+// The level the overview sidecars show: the preview's (at most kPreviewMaxPx
+// blocks a side), at least 1; 0 when the domain has no level (one cell).
+int overview_xdmf_level(int nx, int ny);
 // DIR/run.xdmf: a temporal collection of every DIR/snapshots/step_N.xdmf in
-// step order, which ParaView opens as one animated run. Atomic: rewritten
-// whole after each snapshot, so a reader always sees a complete collection.
+// step order, which ParaView opens as one animated run; DIR/overview.xdmf the
+// same of the step_N.overview.xdmf sidecars. Atomic: rewritten whole after
+// each snapshot, so a reader always sees a complete collection.
 void write_run_xdmf(const std::string& dir);
 
 // Reads a snapshot back (tests, tools): every layer of the registry that the

@@ -135,6 +135,50 @@ std::string grid_text(const std::string& name, const std::string& h5_ref, const 
   return os.str();
 }
 
+// One overview level's <Grid> (io.h OverviewPyramid): a node per block, on
+// the level's regular spacing (2^level cells), with its three layers and the
+// height. Where the domain is not a multiple of 2^level cells the last block
+// of a row or column is partial: its mean is drawn at the regular spacing,
+// not at the centre of its cells (the level's /x and /y have that).
+std::string overview_grid_text(const std::string& name, const std::string& h5_ref,
+                               const SnapshotMeta& meta, int level) {
+  std::ostringstream os = xml_stream();
+  const long long s = 1LL << level;
+  const long long bx = (meta.nx + s - 1) / s, by = (meta.ny + s - 1) / s;
+  const std::string dims = "1 " + std::to_string(by) + " " + std::to_string(bx);
+  const std::string h5 = xml_escape(h5_ref), group = "overview/level_" + std::to_string(level);
+  const double d = meta.cell_size_m * static_cast<double>(s);  // a block's side
+  auto data_item = [&](const std::string& dataset, const char* indent) {
+    os << indent << "<DataItem Dimensions=\"" << dims << "\" NumberType=\"Float\" Precision=\"4\" "
+       << kHdfItem << h5 << ":/" << group << "/" << dataset << "</DataItem>\n";
+  };
+  os << "    <Grid Name=\"" << xml_escape(name) << "\" GridType=\"Uniform\">\n"
+     << "      <Time Value=\"" << detail::snapshot_time_days(meta) << "\"/>\n"
+     << "      <Topology " << kTopology << " Dimensions=\"" << dims << "\"/>\n"
+     << "      <Geometry GeometryType=\"ORIGIN_DXDYDZ\">\n"
+     << "        <DataItem Name=\"Origin\" Dimensions=\"3\" NumberType=\"Float\" Precision=\"8\" "
+        "Format=\"XML\">0 "
+     << d / 2 << " " << d / 2 << "</DataItem>\n"
+     << "        <DataItem Name=\"Spacing\" Dimensions=\"3\" NumberType=\"Float\" Precision=\"8\" "
+        "Format=\"XML\">"
+     << d << " " << d << " " << d << "</DataItem>\n"
+     << "      </Geometry>\n"
+     << "      <Attribute Name=\"height\" AttributeType=\"Scalar\" Center=\"Node\">\n"
+     << "        <DataItem ItemType=\"Function\" Function=\"$0 + $1\" Dimensions=\"" << dims
+     << "\">\n";
+  data_item("bedrock", "          ");
+  data_item("sand", "          ");
+  os << "        </DataItem>\n"
+     << "      </Attribute>\n";
+  for (const char* layer : {"bedrock", "sand", "vegetation"}) {
+    os << "      <Attribute Name=\"" << layer << "\" AttributeType=\"Scalar\" Center=\"Node\">\n";
+    data_item(layer, "        ");
+    os << "      </Attribute>\n";
+  }
+  os << "    </Grid>\n";
+  return os.str();
+}
+
 std::string document(const std::string& body) {
   return "<?xml version=\"1.0\" ?>\n"
          "<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n"
@@ -151,11 +195,11 @@ void write_text(const std::string& path, const std::string& text) {
   out.commit();
 }
 
-// The step of "step_N.xdmf", or -1.
-long long step_of(const std::string& file) {
-  if (file.rfind("step_", 0) != 0 || file.size() <= 10) return -1;
-  if (file.substr(file.size() - 5) != ".xdmf") return -1;
-  const std::string digits = file.substr(5, file.size() - 10);
+// The step of "step_N" + suffix (".xdmf", ".overview.xdmf"), or -1.
+long long step_of(const std::string& file, const std::string& suffix) {
+  if (file.rfind("step_", 0) != 0 || file.size() <= 5 + suffix.size()) return -1;
+  if (file.substr(file.size() - suffix.size()) != suffix) return -1;
+  const std::string digits = file.substr(5, file.size() - 5 - suffix.size());
   if (digits.empty() || digits.size() > 18 ||
       !std::all_of(digits.begin(), digits.end(), [](unsigned char c) { return std::isdigit(c); }))
     return -1;
@@ -175,6 +219,7 @@ void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const 
 void write_xdmf_for(const std::string& h5_path) {
   SnapshotMeta meta;
   std::vector<fields::Id> layers;
+  bool has_overview = false;
   {
     detail::Hdf5Guard guard;
     detail::Hid file = detail::open_hdf5_readonly(h5_path, "snapshot");
@@ -189,17 +234,38 @@ void write_xdmf_for(const std::string& h5_path) {
     }
     for (const fields::Id id : fields::snapshot_order())
       if (detail::link_exists(fid, fields::info(id).name)) layers.push_back(id);
+    has_overview = detail::link_exists(fid, "overview");
   }
   const fs::path p(h5_path);
   write_xdmf(fs::path(p).replace_extension(".xdmf").string(), p.filename().string(), meta, layers);
+  if (has_overview && overview_xdmf_level(meta.nx, meta.ny) > 0)
+    write_overview_xdmf(fs::path(p).replace_extension(".overview.xdmf").string(),
+                        p.filename().string(), meta, overview_xdmf_level(meta.nx, meta.ny));
 }
 
-void write_run_xdmf(const std::string& dir) {
+void write_overview_xdmf(const std::string& xdmf_path, const std::string& h5_name,
+                         const SnapshotMeta& meta, int level) {
+  detail::check_grid(xdmf_path, meta.nx, meta.ny);
+  if (h5_name.empty()) fail(xdmf_path, "XDMF needs the name of its HDF5 file");
+  if (level < 1 || level > overview_levels(meta.nx, meta.ny))
+    fail(xdmf_path, "no overview level " + std::to_string(level) + " in a grid of " +
+                        std::to_string(meta.nx) + " x " + std::to_string(meta.ny) + " cells");
+  const std::string name = fs::path(h5_name).stem().string() + "_level_" + std::to_string(level);
+  write_text(xdmf_path, document(overview_grid_text(name, h5_name, meta, level)));
+}
+
+int overview_xdmf_level(int nx, int ny) {
+  return overview_levels(nx, ny) == 0 ? 0 : std::max(1, overview_level_for(nx, ny, kPreviewMaxPx));
+}
+
+namespace {
+// DIR/`out`: the temporal collection of every DIR/snapshots/step_N`suffix`.
+void write_collection(const std::string& dir, const std::string& suffix, const std::string& out) {
   const fs::path snapshots = fs::path(dir) / "snapshots";
   std::vector<std::pair<long long, fs::path>> sidecars;
   std::error_code ec;
   for (fs::directory_iterator it(snapshots, ec), end; !ec && it != end; it.increment(ec)) {
-    const long long step = step_of(it->path().filename().string());
+    const long long step = step_of(it->path().filename().string(), suffix);
     if (step >= 0) sidecars.emplace_back(step, it->path());
   }
   if (ec) detail::fail_errno(snapshots.string(), "cannot list snapshots", ec.value());
@@ -230,7 +296,13 @@ void write_run_xdmf(const std::string& dir) {
   const std::string body =
       "    <Grid Name=\"run\" GridType=\"Collection\" CollectionType=\"Temporal\">\n" + grids +
       "    </Grid>\n";
-  write_text((fs::path(dir) / "run.xdmf").string(), document(body));
+  write_text((fs::path(dir) / out).string(), document(body));
+}
+}  // namespace
+
+void write_run_xdmf(const std::string& dir) {
+  write_collection(dir, ".xdmf", "run.xdmf");
+  write_collection(dir, ".overview.xdmf", "overview.xdmf");
 }
 
 }  // namespace erg::io

@@ -139,6 +139,8 @@ void write_outputs(Simulation& sim, const std::string& dir, bool previews, Progr
   if (previews) view = gather_overview_level(ctx.cart, ctx.d, pyramid, level, terrain);
   if (!ctx.root()) return;
   io::write_xdmf(dir + "/snapshots/" + name + ".xdmf", name + ".h5", meta, layers);
+  if (const int l = io::overview_xdmf_level(meta.nx, meta.ny); l > 0)
+    io::write_overview_xdmf(dir + "/snapshots/" + name + ".overview.xdmf", name + ".h5", meta, l);
   io::write_run_xdmf(dir);
   std::string png;
   if (previews) {
