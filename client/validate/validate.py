@@ -614,7 +614,8 @@ def transverse_law(rep, T, scenes):
     rep.law("Transverse crests perpendicular", ok_angle, f"worst crest-wind angle {worst_angle:.1f} deg")
     rep.law("Transverse wavelength resolution-independent", ok_wl,
             "change " + ", ".join(f"{100 * ch:.1f}%" for ch in changes)
-            + " per halving (" + " -> ".join(f"{r['cell']:g}" for r in res) + " m)")
+            + " per halving (" + " -> ".join(f"{r['cell']:g}" for r in res) + " m; allowed < "
+            + f"{100 * R['max_wavelength_change']:g}%)")
 
 
 def isotropy_law(rep, T, scenes):
