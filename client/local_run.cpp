@@ -29,6 +29,7 @@
 #include "progress_bar.h"
 #include "remote/common.h"
 #include "sim/calibration.h"
+#include "sim/resolution.h"
 
 namespace erg::client {
 
@@ -249,6 +250,9 @@ int cmd_check(const std::vector<std::string>& args) {
     // per step (sim/calibration.h).
     std::istringstream units(erg::describe_units(spec));
     for (std::string line; std::getline(units, line);) std::cerr << "erg: " << line << "\n";
+    // Lengths the cells do not resolve: the job runs, but they depend on
+    // the grid (sim/resolution.h).
+    for (const auto& w : erg::resolution_warnings(spec)) std::cerr << "erg: warning: " << w << "\n";
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "erg: invalid job:\n" << e.what() << "\n";

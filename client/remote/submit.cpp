@@ -143,6 +143,7 @@ int cmd_submit(Remote& remote, const std::vector<std::string>& args) {
             << " (" << s.domain().nx() << " x " << s.domain().ny() << " cells, " << s.run().steps()
             << " steps) to " << remote.settings().server << " as " << job.id() << ", "
             << state_name(job.state()) << "\n";
+  for (const auto& w : job.warnings()) std::cerr << "erg: warning: " << w << "\n";
   if (!watch) return kExitOk;
   return watch_job(remote, job.id(), "submit", true);
 }

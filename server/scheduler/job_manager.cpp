@@ -21,6 +21,7 @@
 #include "io/atomic_file.h"
 #include "io/run_files.h"
 #include "job/spec.h"
+#include "sim/resolution.h"
 #include "sim/tile_plan.h"
 
 namespace erg::server {
@@ -305,6 +306,7 @@ Job JobManager::submit(const std::string& tenant, const erg::v1::SubmitJobReques
   job.mutable_progress()->set_latest_snapshot_step(-1);
   job.set_created_unix_ms(now_ms());
   job.set_idempotency_key(req.idempotency_key());
+  for (auto& w : erg::resolution_warnings(spec)) job.add_warnings(std::move(w));
 
   std::lock_guard lock(mu_);
   if (cfg_.tenant_cell_steps > 0) {

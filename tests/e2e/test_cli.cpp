@@ -398,6 +398,30 @@ TEST(Cli, ReadmeParameterTableMatchesTheSchema) {
 
 namespace {
 
+// A job whose cells are too coarse for a length the model uses is valid
+// and warned, by erg check and by the worker's start-up log, in the same
+// words (sim/resolution.h); a fine one is not warned.
+TEST(Cli, CoarseCellsGetAWarningNamingTheLength) {
+  TempDir t("erg_e2e");
+  write(t / "coarse.json", R"({"domain": {"nx": 16, "ny": 16, "cell_size_m": 4},
+    "layers": {"sand": {"uniform": {"min": 1, "max": 2}}},
+    "wind": {"constant": {"speed_mps": 5}}, "run": {"steps": 1}})");
+  const std::string warning =
+      "erg: warning: the wind shadow's reach, model.shadow_radius_m = 10 m, is shorter than 4 "
+      "cells of 4 m (domain.cell_size_m): it is taken as 3 whole cells (12 m, 20% longer)";
+  const Result check = run(kErg + " check " + (t / "coarse.json"));
+  EXPECT_EQ(check.code, 0) << check.output;
+  EXPECT_NE(check.output.find(warning), std::string::npos) << check.output;
+  const Result worker =
+      run(kWorker + " " + (t / "coarse.json") + " --out " + (t / "out") + " --threads 1 --quiet");
+  EXPECT_EQ(worker.code, 0) << worker.output;
+  EXPECT_NE(worker.output.find(warning), std::string::npos) << worker.output;
+  write(t / "fine.json", kSmallJob);
+  const Result fine = run(kErg + " check " + (t / "fine.json"));
+  EXPECT_EQ(fine.code, 0) << fine.output;
+  EXPECT_EQ(fine.output.find("warning"), std::string::npos) << fine.output;
+}
+
 // The job shown in README is a valid job.
 TEST(Cli, ReadmeExampleJobIsValid) {
   std::ifstream in(std::string(ERG_SOURCE_DIR) + "/README.md");

@@ -206,6 +206,21 @@ class Api(ErgdTest):
         self.ergd.wait(a.id)
         self.ergd.wait(c.id, BOB)
 
+    def test_coarse_cells_are_accepted_with_a_warning_naming_the_length(self):
+        # 4 m cells: the 10 m shadow is under 4 cells (sim/resolution.h).
+        coarse = self.ergd.submit(spec_json(nx=32, ny=32, steps=2, snapshot_every=0,
+                                            checkpoint_every=0, name="coarse",
+                                            domain={"nx": 32, "ny": 32, "cell_size_m": 4}))
+        self.assertEqual(len(coarse.warnings), 1, list(coarse.warnings))
+        self.assertIn("model.shadow_radius_m = 10 m", coarse.warnings[0])
+        self.assertIn("4 cells of 4 m (domain.cell_size_m)", coarse.warnings[0])
+        self.assertEqual(list(self.ergd.get(coarse.id).warnings), list(coarse.warnings))
+        fine = self.ergd.submit(spec_json(steps=2, snapshot_every=0, checkpoint_every=0,
+                                          name="fine"))
+        self.assertEqual(list(fine.warnings), [])
+        self.ergd.wait(coarse.id)
+        self.ergd.wait(fine.id)
+
     def test_list_jobs_pages_and_filters(self):
         ids = [self.ergd.submit(spec_json(steps=2, snapshot_every=0, checkpoint_every=0,
                                           name="page-%d" % i), token=BOB).id for i in range(7)]

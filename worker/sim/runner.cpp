@@ -24,6 +24,7 @@
 #include "job/worker_event.h"
 #include "sim/moving_rate.h"
 #include "sim/overview.h"
+#include "sim/resolution.h"
 #include "sim/resume_point.h"
 #include "sim/tiling.h"
 #include "wind/regime.h"
@@ -481,6 +482,8 @@ class JobRun {
       if (cfg_.resume && !cfg_.quiet)
         std::cerr << "erg: resuming " << cfg_.out_dir << " at step " << sim_->step_index() << "\n";
       if (!cfg_.quiet) log_halo_path();
+      // Said even when quiet, as the avalanching cap is (sim/resolution.h).
+      for (const auto& w : resolution_warnings(sim_->spec())) log_line("erg: warning: ", w, "\n");
       report_start();
     }
     MPI_Barrier(ctx_.comm);  // the directories exist before any collective write

@@ -1,0 +1,160 @@
+// SPDX-License-Identifier: Apache-2.0
+#include "sim/resolution.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "stages/shear_stress.h"
+#include "stages/wind_warping.h"
+#include "wind/physics.h"
+
+namespace erg {
+
+namespace {
+
+// A number for people: 3 significant digits, no trailing zeros.
+std::string num(double v) {
+  std::ostringstream o;
+  o.precision(3);
+  o << v;
+  return o.str();
+}
+std::string metres(double v) {
+  return num(v) + " m";
+}
+std::string percent(double v) {
+  return num(std::round(100.0 * v)) + "%";
+}
+
+// What a length lost to the grid does, said once for every rule.
+constexpr const char* kOnTheGrid = "on the grid, not only on the physics";
+
+// The sentence's ending: the cell size at which the length is resolved.
+std::string resolved_at(double finest_m) {
+  return " (resolved at domain.cell_size_m <= " + metres(finest_m) + ")";
+}
+
+// A hop of `hop_m` (what the job asks for) landing on the 3 x 3 kernel.
+void check_hop(const std::string& what, const std::string& field, double hop_m, double used_m,
+               double l, std::vector<UnresolvedLength>& out) {
+  if (hop_m <= 0 || hop_m >= kHopResolvedCells * l) return;
+  UnresolvedLength u{what, field, hop_m, l, hop_m / kHopResolvedCells, ""};
+  std::string effect;
+  // physics::physical_hop_m raises a hop to one cell, or to max_hop_m when
+  // that is shorter.
+  if (used_m > hop_m)
+    effect = "it is raised to " + metres(used_m) +
+             (used_m >= l ? " (1 cell)" : " (model.max_hop_m)") + ", and ";
+  u.warning =
+      "the " + what + ", " + field + " = " + metres(hop_m) + ", is shorter than " +
+      num(kHopResolvedCells) + " cells of " + metres(l) + " (domain.cell_size_m): " + effect +
+      "the landing kernel spreads every hop by 1/2 cell (" + metres(0.5 * l) +
+      "), more than a quarter of the hop, so the sand flux and the dune wavelength depend " +
+      kOnTheGrid + resolved_at(u.finest_m);
+  out.push_back(std::move(u));
+}
+
+// A reach of `reach_m` taken in whole cells of `cell_m` (ceil, as the
+// stages do); `cells` says which cells ("cells of 4 m (domain.cell_size_m)").
+void check_reach(const std::string& what, const std::string& field, double reach_m, double cell_m,
+                 const std::string& cells, const std::string& consequence, double finest_m,
+                 std::vector<UnresolvedLength>& out) {
+  if (reach_m <= 0 || reach_m >= kReachResolvedCells * cell_m) return;
+  const int n = static_cast<int>(std::ceil(reach_m / cell_m - 1e-9));
+  UnresolvedLength u{what, field, reach_m, cell_m, finest_m, ""};
+  u.warning = "the " + what + ", " + field + " = " + metres(reach_m) + ", is shorter than " +
+              num(kReachResolvedCells) + " " + cells + ": it is taken as " + std::to_string(n) +
+              " whole cell" + (n == 1 ? "" : "s") + " (" + metres(n * cell_m) + ", " +
+              percent(n * cell_m / reach_m - 1.0) +
+              " longer); rounding to whole cells may lengthen a reach under " +
+              num(kReachResolvedCells) + " cells by more than a quarter, so " + consequence + " " +
+              kOnTheGrid + (finest_m > 0 ? resolved_at(finest_m) : "");
+  out.push_back(std::move(u));
+}
+
+}  // namespace
+
+std::vector<UnresolvedLength> unresolved_lengths(const erg::v1::JobSpec& spec) {
+  std::vector<UnresolvedLength> out;
+  const auto& m = spec.model();
+  const double l = spec.domain().cell_size_m();
+  if (!(l > 0)) return out;
+
+  // The hop (stages/saltation.h, landing()): in the physical modes
+  // deposit_on_sand x the saturation length (physics::physical_hop_m), in
+  // model units |w| hop_time_s, at most max_hop_m: the longest hop.
+  if (physics::physical(spec)) {
+    const physics::Sand sand = physics::sand_of(spec);
+    const double lsat_hop = m.deposit_on_sand() * physics::saturation_length(sand);
+    const double used = physics::physical_hop_m(sand, m.deposit_on_sand(), l, m.max_hop_m());
+    if (lsat_hop <= m.max_hop_m())
+      check_hop("saltation hop",
+                "model.deposit_on_sand x the saturation length (physics.saturation_length_m) = " +
+                    num(m.deposit_on_sand()) + " x " + metres(physics::saturation_length(sand)),
+                lsat_hop, used, l, out);
+    else
+      check_hop("saltation hop", "model.max_hop_m", m.max_hop_m(), used, l, out);
+  } else if (m.hop_time_s() > 0) {
+    check_hop("longest saltation hop", "model.max_hop_m", m.max_hop_m(), m.max_hop_m(), l, out);
+  }
+
+  // The wind shadow marches N_s = ceil(R_s / l) cells upwind [N24 eq. 4].
+  check_reach("wind shadow's reach", "model.shadow_radius_m", m.shadow_radius_m(), l,
+              "cells of " + metres(l) + " (domain.cell_size_m)",
+              "the sheltered lee of a dune and the dunes' spacing depend",
+              m.shadow_radius_m() / kReachResolvedCells, out);
+  // Echo dunes look for a cliff ceil(reach / l) cells upwind.
+  if (m.echo_dunes())
+    check_reach("echo dunes' reach", "model.echo_reach_m", m.echo_reach_m(), l,
+                "cells of " + metres(l) + " (domain.cell_size_m)", "where echo dunes form depends",
+                m.echo_reach_m() / kReachResolvedCells, out);
+
+  // The wind warping's Gaussians (stages/wind_warping.h): coarse cells of at
+  // most sigma / 4, never narrower than one cell.
+  const std::pair<const char*, double> radii[] = {
+      {"model.warp_large_radius_m", m.warp_large_radius_m()},
+      {"model.warp_small_radius_m", m.warp_small_radius_m()}};
+  for (const auto& [field, radius] : radii) {
+    const double sigma = wind_warping::sigma_of_radius(radius);
+    if (!(sigma > 0) || sigma >= kSigmaResolvedCells * l) continue;
+    UnresolvedLength u{"wind-warping smoothing", field, radius, l, sigma / kSigmaResolvedCells, ""};
+    u.warning = std::string("the wind-warping smoothing, ") + field + " = " + metres(radius) +
+                " (sigma = radius / 2 = " + metres(sigma) + "), has " + num(sigma / l) +
+                " cells per sigma at " + metres(l) + " cells (domain.cell_size_m), fewer than " +
+                num(kSigmaResolvedCells) +
+                ": the smoothed slope the wind turns along is off by up to (l / sigma)^2 / 6 = " +
+                num(100.0 * (l / sigma) * (l / sigma) / 6.0) +
+                "%, so the wind's deflection by dunes and the dune forms depend " + kOnTheGrid +
+                resolved_at(u.finest_m);
+    out.push_back(std::move(u));
+  }
+
+  // The shear-stress kernel, on the warping's coarse cells (sim/model.cpp).
+  if (physics::physical(spec)) {
+    const physics::Sand sand = physics::sand_of(spec);
+    if (sand.shear_a > 0 && m.warp_large_radius_m() > 0 && m.warp_small_radius_m() > 0) {
+      const int c =
+          wind_warping::coarse_factor_of_radii(l, m.warp_large_radius_m(), m.warp_small_radius_m());
+      // With one fine cell per coarse cell a finer grid shrinks the coarse
+      // cell with it; with more, the coarse cell is set by the warping's
+      // radii, not by domain.cell_size_m.
+      check_reach("shear-stress kernel's reach", "physics.shear_stress_radius_m",
+                  sand.shear_radius_m, c * l,
+                  "coarse cells of " + metres(c * l) + " (the wind warping's, " +
+                      std::to_string(c) + " x " + std::to_string(c) + " cells of " + metres(l) +
+                      ")",
+                  "the wind's speed-up over dunes and the dune forms depend",
+                  c == 1 ? sand.shear_radius_m / kReachResolvedCells : 0.0, out);
+    }
+  }
+  return out;
+}
+
+std::vector<std::string> resolution_warnings(const erg::v1::JobSpec& spec) {
+  std::vector<std::string> out;
+  for (auto& u : unresolved_lengths(spec)) out.push_back(std::move(u.warning));
+  return out;
+}
+
+}  // namespace erg
