@@ -344,6 +344,18 @@ TEST(Cli, BenchPrintsJsonWithStageTimes) {
     EXPECT_NE(r.output.find(key), std::string::npos) << key << " in " << r.output;
 }
 
+// --no-bandwidth skips the triad (1.5 GB) and the roofline; --iterations
+// sets the job's model.avalanche_iterations (README, "Performance").
+TEST(Cli, BenchWithoutBandwidthAndWithAnotherCap) {
+  const Result r = run(kBench +
+                       " --scene A --size 512 --steps 1 --warmup 1 --threads 2 --json"
+                       " --no-bandwidth --iterations 50");
+  ASSERT_EQ(r.code, 0) << r.output;
+  for (const char* key : {"\"bandwidth_source\":\"none\"", "\"roofline_ms_per_step\":0.0000",
+                          "\"avalanche_iterations\":50,"})
+    EXPECT_NE(r.output.find(key), std::string::npos) << key << " in " << r.output;
+}
+
 // Every example runs (for a few steps: the full runs are for users).
 class Example : public ::testing::TestWithParam<std::string> {};
 TEST_P(Example, Runs) {

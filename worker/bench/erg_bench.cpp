@@ -3,7 +3,7 @@
 //
 //   erg-bench --scene A|B --size 512|1024|2048|4096|8192 [--steps N] [--warmup W]
 //             [--threads T] [--backend auto|cpu|cuda] [--iterations I] [--json]
-//             [--ranks P [--tiles PXxPY]] [--scaling]
+//             [--ranks P [--tiles PXxPY]] [--scaling] [--no-bandwidth]
 //   erg-bench --device-info [--json]
 //
 // --ranks P runs the scene on P MPI ranks (erg-bench starts mpirun itself),
@@ -20,6 +20,8 @@
 // estimate: the bytes the pipeline must move per step divided by the memory
 // bandwidth measured here: a STREAM-like triad on the CPU backend, a
 // device-to-device copy on the CUDA backend (cuda_device_info, backend.h).
+// --no-bandwidth skips that measurement (the triad's arrays take 1.5 GB;
+// no roofline is reported then).
 // --device-info prints the GPU (name, compute capability, memory, SMs,
 // runtime and driver) and its measured copy bandwidth, and exits.
 #include <mpi.h>
@@ -60,6 +62,7 @@ struct Args {
   int tiles_x = 0, tiles_y = 0;
   bool scaling = false;
   bool device_info = false;
+  bool no_bandwidth = false;  // skip the triad (and the roofline)
 };
 
 Args parse(int argc, char** argv) {
@@ -94,6 +97,8 @@ Args parse(int argc, char** argv) {
       a.scaling = true;
     else if (f == "--device-info")
       a.device_info = true;
+    else if (f == "--no-bandwidth")
+      a.no_bandwidth = true;
     else
       throw std::invalid_argument(f + ": unknown flag");
   }
@@ -393,7 +398,9 @@ int main(int argc, char** argv) {
   // bandwidth. The CPU's is a triad, the GPU's a device-to-device copy.
   double bandwidth = 0.0;
   std::string bandwidth_source = "none";
-  if (nranks == 1 && cpu) {
+  if (a.no_bandwidth) {
+    // (none measured: no roofline)
+  } else if (nranks == 1 && cpu) {
     bandwidth = triad_bandwidth(opt.threads);
     bandwidth_source = "cpu_triad";
   } else if (nranks == 1 && sim.backend().name() == "cuda") {
