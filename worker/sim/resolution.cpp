@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: Apache-2.0
 #include "sim/resolution.h"
 
-#include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <utility>
 
-#include "stages/shear_stress.h"
+#include "stages/saltation.h"
 #include "stages/wind_warping.h"
 #include "wind/physics.h"
 
@@ -34,6 +34,10 @@ constexpr const char* kOnTheGrid = "on the grid, not only on the physics";
 std::string resolved_at(double finest_m) {
   return " (resolved at domain.cell_size_m <= " + metres(finest_m) + ")";
 }
+
+// The landing kernel's spread, 1/2 cell, is a quarter of a hop of 2 cells.
+static_assert(saltation::kLandingVar == 0.25f && kHopResolvedCells == 2.0,
+              "the hop's rule and its words assume a landing spread of 1/2 cell");
 
 // A hop of `hop_m` (what the job asks for) landing on the 3 x 3 kernel.
 void check_hop(const std::string& what, const std::string& field, double hop_m, double used_m,
