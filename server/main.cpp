@@ -58,7 +58,7 @@ void usage() {
          "address]\n"
          "            [--http-workers N (4): threads answering complete HTTP requests]\n"
          "            [--max-job-memory BYTES (this machine's memory): jobs whose estimate\n"
-         "             (120 bytes per cell) is above are refused] [--max-threads N (cores)]\n"
+         "             (100 bytes per cell) is above are refused] [--max-threads N (cores)]\n"
          "            [--worker-retries N (3): restarts, from the newest intact checkpoint,\n"
          "             of a job whose worker died (killed, crashed)]\n"
          "            [--min-free-disk BYTES (268435456): below this much free space in\n"

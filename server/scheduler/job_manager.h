@@ -70,10 +70,10 @@ struct ManagerConfig {
 
 // What a running worker holds per cell of its domain, all ranks together:
 // the largest peak measured at 4096² and beyond, the part that does not
-// grow with the domain included (README "Memory": 114 bytes per cell at
-// 4096² on 2 ranks with the overview pyramid; CPU backend, snapshots and
-// checkpoints included), rounded up.
-inline constexpr std::int64_t kJobBytesPerCell = 120;
+// grow with the domain included (README "Memory": 92 bytes per cell at
+// 4096² and 74 at 16384² on 2 ranks; CPU backend, snapshots and checkpoints
+// included), rounded up.
+inline constexpr std::int64_t kJobBytesPerCell = 100;
 
 class JobManager {
  public:

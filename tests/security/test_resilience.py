@@ -140,13 +140,13 @@ class Limits(ErgdTest):
         self.assertEqual(err.exception.code(), grpc.StatusCode.RESOURCE_EXHAUSTED)
         m = err.exception.details()
         self.assertIn("memory estimate", m)
-        self.assertIn("120 bytes per cell x 1099511627776 cells", m)
+        self.assertIn("100 bytes per cell x 1099511627776 cells", m)
         self.assertIn("--max-job-memory", m)
-        # 2900 x 2900 x 120 B = 0.94 GiB fits in 1 GiB; 3000 x 3000 does not.
-        ok = self.ergd.submit(spec_json(name="fits", nx=2900, ny=2900, steps=1))
+        # 3200 x 3200 x 100 B = 0.95 GiB fits in 1 GiB; 3300 x 3300 does not.
+        ok = self.ergd.submit(spec_json(name="fits", nx=3200, ny=3200, steps=1))
         self.ergd.stub.CancelJob(S.CancelJobRequest(id=ok.id), metadata=md(ALICE), timeout=30)
         with self.assertRaises(grpc.RpcError) as err:
-            self.ergd.submit(spec_json(name="toobig", nx=3000, ny=3000, steps=1))
+            self.ergd.submit(spec_json(name="toobig", nx=3300, ny=3300, steps=1))
         self.assertEqual(err.exception.code(), grpc.StatusCode.RESOURCE_EXHAUSTED)
 
     def test_threads_per_rank_are_capped_at_the_cores(self):
