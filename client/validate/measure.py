@@ -232,6 +232,34 @@ def barchan_shape(dune, sand, cell_size_m, wind_deg):
             "horns_downwind": horn_along > crest_along}
 
 
+def windward_slope(dune, sand, height, cell_size_m, wind_deg, threshold_m):
+    """The mean slope of a dune's windward face, in degrees: from the crest
+    (the highest sand cell) upwind along the wind, cell by cell (nearest
+    cell, periodic), to the toe, the last cell whose sand is thicker than
+    `threshold_m`; atan((height at the crest - height at the toe) / their
+    distance). Field barchans have gentle windward faces (about 10 degrees)
+    and a slip face at repose in the lee; a windward face at repose means
+    that the flux saturated at the toe and the whole windward erosion is
+    there (docs/physical-units.md, "What sets the speed of a dune here")."""
+    ny, nx = sand.shape
+    ix, iy = dune["ix"], dune["iy"]
+    k = int(np.argmax(sand[iy, ix]))
+    x0, y0 = float(ix[k]), float(iy[k])
+    a = math.radians(wind_deg)
+    ex, ey = math.cos(a), math.sin(a)
+    top = float(height[iy[k], ix[k]])
+    toe, toe_h = 0, top
+    for n in range(1, max(nx, ny)):
+        cx = int(round(x0 - n * ex)) % nx
+        cy = int(round(y0 - n * ey)) % ny
+        if sand[cy, cx] <= threshold_m:
+            break
+        toe, toe_h = n, float(height[cy, cx])
+    if toe == 0:
+        return 0.0
+    return math.degrees(math.atan2(top - toe_h, toe * cell_size_m))
+
+
 # --- slopes -------------------------------------------------------------------
 
 # The 4 neighbour offsets that, with their opposites, make erg's 8

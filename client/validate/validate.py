@@ -306,9 +306,11 @@ def barchan_laws(rep, T, run_dir, job):
             f"(across-wind extent of the body); horns point downwind when the mean along-wind "
             f"position of the outermost 10% (across the wind) lies downwind of the crest. Only "
             f"dunes with a slip face (a lee cell within {B['slip_face_margin_deg']:g} deg of the "
-            f"repose angle {repose:g} deg) are judged.", "")
-    rep.add("| dune (y, m) | H (m) | W (m) | H/W | horn offset (m) | horns downwind | slip face |",
-            "|---|---|---|---|---|---|---|")
+            f"repose angle {repose:g} deg) are judged. The windward slope (reported, not judged) is the "
+            f"mean slope from the crest upwind to the toe (measure.windward_slope): field barchans' "
+            f"are about 10 deg, their slip face alone at repose.", "")
+    rep.add("| dune (y, m) | H (m) | W (m) | H/W | horn offset (m) | horns downwind | slip face | windward slope (deg) |",
+            "|---|---|---|---|---|---|---|---|")
     judged, ok_shape = 0, True
     aspects = []
     for d in final:
@@ -317,7 +319,8 @@ def barchan_laws(rep, T, run_dir, job):
         slip = bool(lee.any())
         rep.add(f"| {d['y_m']:.0f} | {sh['height_m']:.2f} | {sh['width_m']:.0f} | {sh['aspect']:.3f} | "
                 f"{sh['horn_offset_m']:+.1f} | {'yes' if sh['horns_downwind'] else 'no'} | "
-                f"{'yes' if slip else 'no'} |")
+                f"{'yes' if slip else 'no'} | "
+                f"{M.windward_slope(d, last['sand'], height, cell, wind, det['dune_sand_threshold_m']):.1f} |")
         if slip:
             judged += 1
             good = B["min"] <= sh["aspect"] <= B["max"] and sh["horns_downwind"]

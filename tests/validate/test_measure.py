@@ -208,6 +208,44 @@ class Shape(unittest.TestCase):
         self.assertTrue(sh["horns_downwind"])
 
 
+class WindwardSlope(unittest.TestCase):
+    """A ridge across the wind with a windward face of slope 0.2 and a lee
+    face of slope 0.65: the measure reads the face the wind climbs."""
+    @staticmethod
+    def ridge(nx=120, ny=40, crest=60, wind_face=0.2, lee_face=0.65, top=5.0):
+        s = np.zeros((ny, nx))
+        for ix in range(nx):
+            d = ix - crest
+            h = top - (wind_face * -d if d < 0 else lee_face * d)
+            s[5:35, ix] = max(h, 0.0)
+        return s
+
+    def test_faces_under_both_winds(self):
+        s = self.ridge()
+        d = M.dunes(s, 1.0, 0.3, 10)[0]
+        # The toe is the last cell above 0.3 m: 23 cells upwind (0.4 m).
+        self.assertAlmostEqual(M.windward_slope(d, s, s, 1.0, 0.0, 0.3),
+                               math.degrees(math.atan(0.2)), places=9)
+        # Under the opposite wind the lee face is the windward one.
+        self.assertAlmostEqual(M.windward_slope(d, s, s, 1.0, 180.0, 0.3),
+                               math.degrees(math.atan(0.65)), places=9)
+
+    def test_cell_size_and_the_seam(self):
+        s = self.ridge(crest=10)  # the windward face wraps past x = 0
+        d = M.dunes(s, 0.5, 0.3, 10)[0]
+        # Heights per cell as before, cells of 0.5 m: the slope doubles.
+        self.assertAlmostEqual(M.windward_slope(d, s, s, 0.5, 0.0, 0.3),
+                               math.degrees(math.atan(0.4)), places=9)
+
+    def test_heights_include_the_bed(self):
+        s = self.ridge()
+        bed = np.zeros_like(s)
+        bed[:, :50] = 1.0  # the crest stands 1 m lower than a toe on the step
+        d = M.dunes(s, 1.0, 0.3, 10)[0]
+        got = M.windward_slope(d, s, s + bed, 1.0, 0.0, 0.3)
+        self.assertAlmostEqual(got, math.degrees(math.atan((5.0 - 0.4 - 1.0) / 23.0)), places=9)
+
+
 class Mass(unittest.TestCase):
     def snap(self, step, sand, air):
         return {"step": step, "sand_units_total": sand, "airborne_units_total": air}
