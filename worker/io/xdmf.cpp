@@ -78,16 +78,26 @@ std::string xml_escape(const std::string& s) {
 constexpr const char* kTopology = "TopologyType=\"3DCoRectMesh\"";
 constexpr const char* kHdfItem = "Format=\"HDF\">";
 
-// One snapshot's <Grid>, its HDF5 paths relative to the XDMF file that holds it.
+// The shape of a grid: nx x ny nodes `spacing_m` apart, the first at
+// spacing_m / 2, with its datasets under `group` ("" or "overview/level_K/").
+struct GridShape {
+  long long nx = 0, ny = 0;
+  double spacing_m = 1;
+  std::string group;
+};
+
+// One <Grid>, its HDF5 paths relative to the XDMF file that holds it: the
+// height, then `layers` (registry fields, in file order; wind_x and wind_y as
+// one vector).
 std::string grid_text(const std::string& name, const std::string& h5_ref, const SnapshotMeta& meta,
-                      const std::vector<fields::Id>& layers) {
+                      const GridShape& g, const std::vector<fields::Id>& layers) {
   std::ostringstream os = xml_stream();
-  const std::string dims = "1 " + std::to_string(meta.ny) + " " + std::to_string(meta.nx);
+  const std::string dims = "1 " + std::to_string(g.ny) + " " + std::to_string(g.nx);
   const std::string h5 = xml_escape(h5_ref);
-  const double d = meta.cell_size_m;
+  const double d = g.spacing_m;
   auto data_item = [&](const std::string& dataset, const char* indent) {
     os << indent << "<DataItem Dimensions=\"" << dims << "\" NumberType=\"Float\" Precision=\"4\" "
-       << kHdfItem << h5 << ":/" << dataset << "</DataItem>\n";
+       << kHdfItem << h5 << ":/" << g.group << dataset << "</DataItem>\n";
   };
   auto scalar = [&](const std::string& dataset) {
     os << "      <Attribute Name=\"" << dataset << "\" AttributeType=\"Scalar\" Center=\"Node\">\n";
@@ -115,7 +125,6 @@ std::string grid_text(const std::string& name, const std::string& h5_ref, const 
   data_item("sand", "          ");
   os << "        </DataItem>\n"
      << "      </Attribute>\n";
-  // The registry's layers in file order; the wind's components as one vector.
   for (const fields::Id id : layers) {
     if (id == fields::kWindY) continue;
     if (id != fields::kWindX) {
@@ -142,41 +151,11 @@ std::string grid_text(const std::string& name, const std::string& h5_ref, const 
 // not at the centre of its cells (the level's /x and /y have that).
 std::string overview_grid_text(const std::string& name, const std::string& h5_ref,
                                const SnapshotMeta& meta, int level) {
-  std::ostringstream os = xml_stream();
   const long long s = 1LL << level;
-  const long long bx = (meta.nx + s - 1) / s, by = (meta.ny + s - 1) / s;
-  const std::string dims = "1 " + std::to_string(by) + " " + std::to_string(bx);
-  const std::string h5 = xml_escape(h5_ref), group = "overview/level_" + std::to_string(level);
-  const double d = meta.cell_size_m * static_cast<double>(s);  // a block's side
-  auto data_item = [&](const std::string& dataset, const char* indent) {
-    os << indent << "<DataItem Dimensions=\"" << dims << "\" NumberType=\"Float\" Precision=\"4\" "
-       << kHdfItem << h5 << ":/" << group << "/" << dataset << "</DataItem>\n";
-  };
-  os << "    <Grid Name=\"" << xml_escape(name) << "\" GridType=\"Uniform\">\n"
-     << "      <Time Value=\"" << detail::snapshot_time_days(meta) << "\"/>\n"
-     << "      <Topology " << kTopology << " Dimensions=\"" << dims << "\"/>\n"
-     << "      <Geometry GeometryType=\"ORIGIN_DXDYDZ\">\n"
-     << "        <DataItem Name=\"Origin\" Dimensions=\"3\" NumberType=\"Float\" Precision=\"8\" "
-        "Format=\"XML\">0 "
-     << d / 2 << " " << d / 2 << "</DataItem>\n"
-     << "        <DataItem Name=\"Spacing\" Dimensions=\"3\" NumberType=\"Float\" Precision=\"8\" "
-        "Format=\"XML\">"
-     << d << " " << d << " " << d << "</DataItem>\n"
-     << "      </Geometry>\n"
-     << "      <Attribute Name=\"height\" AttributeType=\"Scalar\" Center=\"Node\">\n"
-     << "        <DataItem ItemType=\"Function\" Function=\"$0 + $1\" Dimensions=\"" << dims
-     << "\">\n";
-  data_item("bedrock", "          ");
-  data_item("sand", "          ");
-  os << "        </DataItem>\n"
-     << "      </Attribute>\n";
-  for (const char* layer : {"bedrock", "sand", "vegetation"}) {
-    os << "      <Attribute Name=\"" << layer << "\" AttributeType=\"Scalar\" Center=\"Node\">\n";
-    data_item(layer, "        ");
-    os << "      </Attribute>\n";
-  }
-  os << "    </Grid>\n";
-  return os.str();
+  const GridShape g{(meta.nx + s - 1) / s, (meta.ny + s - 1) / s,
+                    meta.cell_size_m * static_cast<double>(s),
+                    "overview/level_" + std::to_string(level) + "/"};
+  return grid_text(name, h5_ref, meta, g, {fields::kBedrock, fields::kSand, fields::kVegetation});
 }
 
 std::string document(const std::string& body) {
@@ -213,7 +192,8 @@ void write_xdmf(const std::string& xdmf_path, const std::string& h5_name, const 
   detail::check_grid(xdmf_path, meta.nx, meta.ny);
   if (h5_name.empty()) fail(xdmf_path, "XDMF needs the name of its HDF5 file");
   std::string name = fs::path(h5_name).stem().string();
-  write_text(xdmf_path, document(grid_text(name, h5_name, meta, layers)));
+  write_text(xdmf_path, document(grid_text(name, h5_name, meta,
+                                           {meta.nx, meta.ny, meta.cell_size_m, ""}, layers)));
 }
 
 void write_xdmf_for(const std::string& h5_path) {
