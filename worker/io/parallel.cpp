@@ -144,6 +144,13 @@ class SameOnAllRanks {
     std::memcpy(&bits, &v, sizeof bits);
     add(name, bits);
   }
+  // The grid and its chunks, which both files' writers agree on first.
+  void add_grid(int nx, int ny, int chunk_nx, int chunk_ny) {
+    add("nx", std::int64_t{nx});
+    add("ny", std::int64_t{ny});
+    add("chunk_nx", std::int64_t{chunk_nx});
+    add("chunk_ny", std::int64_t{chunk_ny});
+  }
 
   // Collective: rank 0's values are broadcast and compared on every rank.
   void check(Collective& co, const std::string& path) const {
@@ -509,10 +516,7 @@ void agree_on_snapshot(Collective& co, const std::string& path, const SnapshotMe
   });
   co.agree();
   SameOnAllRanks same;
-  same.add("nx", std::int64_t{meta.nx});
-  same.add("ny", std::int64_t{meta.ny});
-  same.add("chunk_nx", std::int64_t{chunk_nx});
-  same.add("chunk_ny", std::int64_t{chunk_ny});
+  same.add_grid(meta.nx, meta.ny, chunk_nx, chunk_ny);
   same.add("step", meta.step);
   same.add("time_days", meta.time_days);
   same.add("cell_size_m", meta.cell_size_m);
@@ -642,10 +646,7 @@ namespace {
 void agree_on_checkpoint(Collective& co, const std::string& path, const Checkpoint& c,
                          const TileSlab& slab, int chunk_nx, int chunk_ny) {
   SameOnAllRanks same;
-  same.add("nx", std::int64_t{c.nx});
-  same.add("ny", std::int64_t{c.ny});
-  same.add("chunk_nx", std::int64_t{chunk_nx});
-  same.add("chunk_ny", std::int64_t{chunk_ny});
+  same.add_grid(c.nx, c.ny, chunk_nx, chunk_ny);
   same.add("step", c.step);
   same.add("job_spec", c.job_spec_json);
   same.add("ledger size", static_cast<std::int64_t>(c.ledger.size()));

@@ -218,9 +218,9 @@ void write_xdmf_for(const std::string& h5_path) {
   }
   const fs::path p(h5_path);
   write_xdmf(fs::path(p).replace_extension(".xdmf").string(), p.filename().string(), meta, layers);
-  if (has_overview && overview_xdmf_level(meta.nx, meta.ny) > 0)
+  if (const int level = overview_xdmf_level(meta.nx, meta.ny); has_overview && level > 0)
     write_overview_xdmf(fs::path(p).replace_extension(".overview.xdmf").string(),
-                        p.filename().string(), meta, overview_xdmf_level(meta.nx, meta.ny));
+                        p.filename().string(), meta, level);
 }
 
 void write_overview_xdmf(const std::string& xdmf_path, const std::string& h5_name,
