@@ -78,7 +78,7 @@ class HostPacker final : public HostBufferPacker {
       for (int y = r.y0; y < r.y1; ++y) {
         T* dst = &f(r.x0, y);
         if (!add) {
-          std::memcpy(dst, p, row);
+          copy_changed(dst, p, row);  // ghosts of a zero layer stay unwritten
           p += row;
           continue;
         }

@@ -12,16 +12,23 @@ void fill_periodic(Field<T>& f, int width) {
   if (w <= 0) return;
   // Columns first, on owned rows; then whole ghost rows copy owned rows
   // (which now carry their column ghosts). Modulo handles halos wider than
-  // the tile on tiny domains.
+  // the tile on tiny domains. What is already there is not written again
+  // (copy_changed): the ghosts of a zero layer stay in untouched pages.
+  const std::size_t span = sizeof(T) * static_cast<size_t>(w);
   for (int y = 0; y < g.ny; ++y) {
     T* r = f.row(y);
+    if (w <= g.nx) {
+      copy_changed(r - w, r + g.nx - w, span);
+      copy_changed(r + g.nx, r, span);
+      continue;
+    }
     for (int x = -w; x < 0; ++x) r[x] = r[((x % g.nx) + g.nx) % g.nx];
     for (int x = g.nx; x < g.nx + w; ++x) r[x] = r[x % g.nx];
   }
   for (int y = -w; y < g.ny + w; ++y) {
     if (y >= 0 && y < g.ny) continue;
     const int src = ((y % g.ny) + g.ny) % g.ny;
-    std::memcpy(f.row(y) - w, f.row(src) - w, sizeof(T) * static_cast<size_t>(g.nx + 2 * w));
+    copy_changed(f.row(y) - w, f.row(src) - w, sizeof(T) * static_cast<size_t>(g.nx + 2 * w));
   }
 }
 

@@ -155,11 +155,13 @@ void CpuBackend::upload_rows(fields::Id id, int y0, int y1, const void* in) {
   check_rows(id, y0, y1, g_, true);
   const std::size_t row = stored_bytes(id) * static_cast<std::size_t>(g_.nx);
   const auto* i = static_cast<const char*>(in);
+  // Rows equal to what the field holds are not written: a layer of zeros
+  // stays in untouched pages (copy_changed, core/field.h).
   for (int y = y0; y < y1; ++y, i += row)
-    std::memcpy(fields::info(id).type == fields::Type::kUnits
-                    ? static_cast<void*>(units(id).row(y))
-                    : static_cast<void*>(reals(id).row(y)),
-                i, row);
+    copy_changed(fields::info(id).type == fields::Type::kUnits
+                     ? static_cast<void*>(units(id).row(y))
+                     : static_cast<void*>(reals(id).row(y)),
+                 i, row);
 }
 
 void CpuBackend::upload_done() {

@@ -32,8 +32,7 @@ class CoarseSmoother {
  private:
   CoarseGrid c_;
   wind_warping::TileWindow t_;
-  std::vector<double> kx_[2], ky_[2];        // wind_warping::gaussian_kernel per scale and axis
-  std::vector<double> rows_[2], smooth_[2];  // the passes along y and along x, per scale
+  std::vector<double> kx_[2], ky_[2];  // wind_warping::gaussian_kernel per scale and axis
 };
 
 class CpuBackend final : public Backend {

@@ -30,38 +30,50 @@ CoarseSmoother::CoarseSmoother(const CoarseGrid& c, int tcnx, int tcny)
 // vectorises: every output still sums the centre tap, then the pairs
 // w[r + k] (x[-k] + x[k]) for k = 1 .. r, in that order (no contraction:
 // -ffp-contract=off), so the bits are those of wind_warping::convolve.
+//
+// Fused over blocks of gradient rows: a block of kRowBlock gradient rows
+// needs kRowBlock + 2 smoothed rows (the central difference along y), which
+// need as many rows of the pass along y. Each thread keeps those rows in
+// its own two buffers, so no pass is ever stored for the whole tile (the
+// two passes of both scales were 32 bytes per coarse cell, about 2 bytes
+// per fine cell at the default radii: docs/design.md, "Memory"); the two
+// smoothed rows a block shares with the next are computed twice, the same
+// bits both times.
 void CoarseSmoother::gradients(const std::vector<double>& window, std::vector<float> grad_x[2],
                                std::vector<float> grad_y[2], int threads) {
   const wind_warping::TileWindow t = t_;
-  const int wx = t.wx(), sx = t.tcnx + 4, rows = t.tcny + 4;
+  const int wx = t.wx(), sx = t.tcnx + 4;
   const int gnx = t.tcnx + 2, gny = t.tcny + 2;
   const double dx = c_.cx * c_.cell_m, dy = c_.cy * c_.cell_m;
   for (int s = 0; s < 2; ++s) {
-    rows_[s].resize(static_cast<size_t>(rows) * wx);
-    smooth_[s].resize(static_cast<size_t>(rows) * sx);
     grad_x[s].resize(static_cast<size_t>(gnx) * gny);
     grad_y[s].resize(static_cast<size_t>(gnx) * gny);
   }
-  // In blocks of rows and strips of columns, so that the 2 r + 1 input rows
-  // a strip reads stay in cache from one output row to the next (each
-  // output's taps still run in convolve's order). Both scales in each pass: one
-  // parallel region, three barriers.
-  constexpr int kRowBlock = 16, kStrip = 64;
-  const int blocks = (rows + kRowBlock - 1) / kRowBlock;
+  // Strips of columns in the pass along y, so that the 2 r + 1 input rows a
+  // strip reads stay in cache from one output row to the next.
+  constexpr int kRowBlock = 32, kStrip = 64;
+  const int blocks = (gny + kRowBlock - 1) / kRowBlock;
 #pragma omp parallel num_threads(threads)
   {
+    // Rows j0 .. j0 + kRowBlock + 1 of the pass along y (window columns as
+    // in the window) and of the smoothed heights (smooth[j][i] of
+    // wind_warping::smooth_at), for the block being computed.
+    std::vector<double> along_y(static_cast<size_t>(kRowBlock + 2) * wx);
+    std::vector<double> smooth(static_cast<size_t>(kRowBlock + 2) * sx);
 #pragma omp for schedule(static)
     for (int sb = 0; sb < 2 * blocks; ++sb) {
-      const int s = sb / blocks, jb = (sb % blocks) * kRowBlock;
+      const int s = sb / blocks, j0 = (sb % blocks) * kRowBlock;
+      const int j1 = j0 + kRowBlock < gny ? j0 + kRowBlock : gny;
+      const int n_rows = j1 - j0 + 2;  // smoothed rows j0 .. j1 + 1
       const int rx = c_.radius_x[s], ry = c_.radius_y[s];
       const double* wy = ky_[s].data();
       // Along y, only at the columns the pass along x reads.
       const int i0 = t.hx - 2 - rx, i1 = t.hx + t.tcnx + 2 + rx;
       for (int ib = i0; ib < i1; ib += kStrip) {
         const int n = ib + kStrip < i1 ? kStrip : i1 - ib;
-        for (int j = jb; j < jb + kRowBlock && j < rows; ++j) {
+        for (int r = 0; r < n_rows; ++r) {
           double acc[kStrip];
-          const double* centre = window.data() + static_cast<size_t>(j + t.hy - 2) * wx + ib;
+          const double* centre = window.data() + static_cast<size_t>(j0 + r + t.hy - 2) * wx + ib;
           for (int i = 0; i < n; ++i) acc[i] = wy[ry] * centre[i];
           for (int k = 1; k <= ry; ++k) {
             const double w = wy[ry + k];
@@ -69,34 +81,29 @@ void CoarseSmoother::gradients(const std::vector<double>& window, std::vector<fl
             const double* __restrict hi = centre + static_cast<size_t>(k) * wx;
             for (int i = 0; i < n; ++i) acc[i] += w * (lo[i] + hi[i]);
           }
-          double* __restrict out = rows_[s].data() + static_cast<size_t>(j) * wx + ib;
+          double* __restrict out = along_y.data() + static_cast<size_t>(r) * wx + ib;
           for (int i = 0; i < n; ++i) out[i] = acc[i];
         }
       }
-    }
-#pragma omp for schedule(static)
-    for (int sj = 0; sj < 2 * rows; ++sj) {
-      const int s = sj / rows, j = sj % rows;
-      const int rx = c_.radius_x[s];
       const double* wxk = kx_[s].data();
-      double* __restrict out = smooth_[s].data() + static_cast<size_t>(j) * sx;
-      const double* centre = rows_[s].data() + static_cast<size_t>(j) * wx + (t.hx - 2);
-      for (int i = 0; i < sx; ++i) out[i] = wxk[rx] * centre[i];
-      for (int k = 1; k <= rx; ++k) {
-        const double w = wxk[rx + k];
-        const double* __restrict lo = centre - k;
-        const double* __restrict hi = centre + k;
-        for (int i = 0; i < sx; ++i) out[i] += w * (lo[i] + hi[i]);
+      for (int r = 0; r < n_rows; ++r) {
+        double* __restrict out = smooth.data() + static_cast<size_t>(r) * sx;
+        const double* centre = along_y.data() + static_cast<size_t>(r) * wx + (t.hx - 2);
+        for (int i = 0; i < sx; ++i) out[i] = wxk[rx] * centre[i];
+        for (int k = 1; k <= rx; ++k) {
+          const double w = wxk[rx + k];
+          const double* __restrict lo = centre - k;
+          const double* __restrict hi = centre + k;
+          for (int i = 0; i < sx; ++i) out[i] += w * (lo[i] + hi[i]);
+        }
       }
-    }
-#pragma omp for schedule(static)
-    for (int sj = 0; sj < 2 * gny; ++sj) {
-      const int s = sj / gny, j = sj % gny;
-      for (int i = 0; i < gnx; ++i) {
-        const Vec2 g = wind_warping::gradient_at(smooth_[s].data(), t, dx, dy, i, j);
-        grad_x[s][static_cast<size_t>(j) * gnx + i] = g.x;
-        grad_y[s][static_cast<size_t>(j) * gnx + i] = g.y;
-      }
+      // smooth holds rows j0 .. j1 + 1: gradient row j reads j .. j + 2.
+      for (int j = j0; j < j1; ++j)
+        for (int i = 0; i < gnx; ++i) {
+          const Vec2 g = wind_warping::gradient_at(smooth.data(), t, dx, dy, i, j - j0);
+          grad_x[s][static_cast<size_t>(j) * gnx + i] = g.x;
+          grad_y[s][static_cast<size_t>(j) * gnx + i] = g.y;
+        }
     }
   }
 }
