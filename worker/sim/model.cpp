@@ -90,8 +90,12 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
     md.shear.a = static_cast<float>(sand.shear_a);
     md.shear.b = static_cast<float>(sand.shear_b);
     md.shear.radius = shear_stress::kernel_radius(sand.shear_radius_m, md.coarse.cx * l);
-    md.coarse.halo_x = std::max(md.coarse.halo_x, md.shear.radius + 2);
-    md.coarse.halo_y = std::max(md.coarse.halo_y, md.shear.radius + 2);
+    md.shear.cx = md.coarse.cx;
+    md.shear.cy = md.coarse.cy;
+    md.shear.delta_m = md.coarse.cx * l;
+    const int reach = std::max(md.shear.radius, shear_stress::kCorrectionRadius);
+    md.coarse.halo_x = std::max(md.coarse.halo_x, reach + 2);
+    md.coarse.halo_y = std::max(md.coarse.halo_y, reach + 2);
   }
 
   md.reptation_k = static_cast<float>(m.reptation_k());

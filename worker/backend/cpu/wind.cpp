@@ -165,21 +165,22 @@ void CpuBackend::heights() {
 
 // tau1 / tau0 of the shear stress over relief at the tile's coarse cells
 // -1 .. tcn (stages/shear_stress.h), from the coarse window: e . grad h over
-// the window's inner cells, then the truncated kernel, with the taps in the
-// outer loop and a row of outputs in the inner one (it vectorises); every
-// output still sums its taps in the kernel's order from 0, then adds B D h
-// and multiplies by A: the bits of shear_stress::perturbation_at (the
-// GPU's), whatever the threads.
+// the window's inner cells, then the truncated kernel and the correction,
+// with the taps in the outer loop and a row of outputs in the inner one (it
+// vectorises); every output still sums each set of taps in its order from
+// 0, then adds B D h and the correction and multiplies by A: the bits of
+// shear_stress::perturbation_at (the GPU's), whatever the threads.
 bool CpuBackend::shear_field(Vec2 a) {
   const shear_stress::Params p = m_.shear;
-  if (!p.on || !shear_kernel_.aim(a, p.radius)) return false;
+  if (!p.on || !shear_kernel_.aim(a, p)) return false;
   const wind_warping::TileWindow t = smoother_.tile();
   const int wx = t.wx(), wy = t.wy(), gnx = t.tcnx + 2, gny = t.tcny + 2;
   const double delta = m_.coarse.cx * m_.coarse.cell_m;
   const double ex = shear_kernel_.ex, ey = shear_kernel_.ey;
   shear_slope_.assign(static_cast<size_t>(wx) * wy, 0.0);
   shear_tau_.resize(static_cast<size_t>(gnx) * gny);
-  const shear_stress::Kernel& k = shear_kernel_;
+  const shear_stress::TapsView k = shear_kernel_.kernel_taps();
+  const shear_stress::TapsView c = shear_kernel_.correction_taps();
 #pragma omp parallel num_threads(threads_)
   {
 #pragma omp for schedule(static)
@@ -187,25 +188,34 @@ bool CpuBackend::shear_field(Vec2 a) {
       for (int i = 1; i < wx - 1; ++i)
         shear_slope_[static_cast<size_t>(j) * wx + i] =
             shear_stress::slope_at(window_.data(), wx, ex, ey, delta, i, j);
-    std::vector<double> acc(static_cast<size_t>(gnx));
+    std::vector<double> acc(static_cast<size_t>(gnx)), cor(static_cast<size_t>(gnx));
 #pragma omp for schedule(static)
     for (int j = 0; j < gny; ++j) {
       // Output (i, j) is window cell (hx - 1 + i, hy - 1 + j).
-      const double* centre =
-          shear_slope_.data() + static_cast<size_t>(t.hy - 1 + j) * wx + t.hx - 1;
+      const size_t at = static_cast<size_t>(t.hy - 1 + j) * wx + t.hx - 1;
+      const double* centre = shear_slope_.data() + at;
+      const double* h = window_.data() + at;
       std::fill(acc.begin(), acc.end(), 0.0);
+      std::fill(cor.begin(), cor.end(), 0.0);
       double* __restrict s = acc.data();
-      for (int n = 0; n < k.taps; ++n) {
-        const long o =
-            static_cast<long>(k.dv[static_cast<size_t>(n)]) * wx + k.du[static_cast<size_t>(n)];
-        const double w = k.k[static_cast<size_t>(n)];
+      for (int n = 0; n < k.n; ++n) {
+        const long o = static_cast<long>(k.dv[n]) * wx + k.du[n];
+        const double w = k.w[n];
         const double* __restrict lo = centre - o;
         const double* __restrict hi = centre + o;
         for (int i = 0; i < gnx; ++i) s[i] += w * (lo[i] - hi[i]);
       }
+      double* __restrict q = cor.data();
+      for (int n = 0; n < c.n; ++n) {
+        const long o = static_cast<long>(c.dv[n]) * wx + c.du[n];
+        const double w = c.w[n];
+        const double* __restrict lo = h - o;
+        for (int i = 0; i < gnx; ++i) q[i] += w * (lo[i] - h[i]);
+      }
       float* __restrict out = shear_tau_.data() + static_cast<size_t>(j) * gnx;
       const double a = p.a, b = p.b;
-      for (int i = 0; i < gnx; ++i) out[i] = static_cast<float>(a * (s[i] + b * centre[i]));
+      for (int i = 0; i < gnx; ++i)
+        out[i] = static_cast<float>(a * ((s[i] + b * centre[i]) + q[i]));
     }
   }
   return true;

@@ -342,6 +342,8 @@ class CudaBackend final : public Backend {
   shear_stress::Kernel shear_kernel_;  // host taps of the current direction
   DeviceBuffer<double> shear_k_;       // ... on the device
   DeviceBuffer<int> shear_du_, shear_dv_;
+  DeviceBuffer<double> shear_c_;  // the correction's taps for the direction
+  DeviceBuffer<int> shear_cdu_, shear_cdv_;
   DeviceBuffer<double> shear_slope_;  // e . grad h over the window
   DeviceBuffer<float> shear_tau_;     // tau1 / tau0, [tcny + 2][tcnx + 2]
   // reductions and downloads

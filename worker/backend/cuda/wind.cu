@@ -94,15 +94,15 @@ __global__ void shear_slope_kernel(wind_warping::TileWindow t, const double* win
 }
 
 // tau1 / tau0 at the tile's coarse cells -1 .. tcn: shear_stress::perturbation_at.
-__global__ void shear_tau_kernel(wind_warping::TileWindow t, const double* slope, const double* k,
-                                 const int* du, const int* dv, int taps, shear_stress::Params p,
-                                 float* tau) {
+__global__ void shear_tau_kernel(wind_warping::TileWindow t, const double* slope,
+                                 const double* window, shear_stress::TapsView k,
+                                 shear_stress::TapsView c, shear_stress::Params p, float* tau) {
   const std::size_t q = flat_index();
   const int n = t.tcnx + 2;
   if (q >= static_cast<std::size_t>(t.tcny + 2) * n) return;
   const int j = static_cast<int>(q / n), i = static_cast<int>(q % n);
   tau[q] =
-      shear_stress::perturbation_at(slope, t.wx(), k, du, dv, taps, p, t.hx - 1 + i, t.hy - 1 + j);
+      shear_stress::perturbation_at(slope, window, t.wx(), k, c, p, t.hx - 1 + i, t.hy - 1 + j);
 }
 
 // tau: tau1 / tau0 at the coarse cells (shear stress over relief), or null.
@@ -171,7 +171,7 @@ bool CudaBackend::shear_field(Vec2 a) {
   // The taps go to the device when the direction changes.
   const double ex0 = shear_kernel_.ex, ey0 = shear_kernel_.ey;
   const int taps0 = shear_kernel_.taps;
-  if (!shear_kernel_.aim(a, p.radius)) return false;
+  if (!shear_kernel_.aim(a, p)) return false;
   const shear_stress::Kernel& k = shear_kernel_;
   if (taps0 == 0 || k.ex != ex0 || k.ey != ey0) {
     const std::size_t n = static_cast<std::size_t>(k.taps);
@@ -183,14 +183,28 @@ bool CudaBackend::shear_field(Vec2 a) {
       ERG_CUDA_CHECK(
           cudaMemcpy(shear_dv_.get(), k.dv.data(), n * sizeof(int), cudaMemcpyHostToDevice));
     }
+    const std::size_t nc = static_cast<std::size_t>(k.basis.n);
+    if (shear_c_.size() != nc) {  // the basis is built with the first direction
+      shear_c_.reset(nc);
+      shear_cdu_.reset(nc);
+      shear_cdv_.reset(nc);
+    }
+    ERG_CUDA_CHECK(
+        cudaMemcpy(shear_c_.get(), k.c.data(), nc * sizeof(double), cudaMemcpyHostToDevice));
+    ERG_CUDA_CHECK(
+        cudaMemcpy(shear_cdu_.get(), k.basis.du.data(), nc * sizeof(int), cudaMemcpyHostToDevice));
+    ERG_CUDA_CHECK(
+        cudaMemcpy(shear_cdv_.get(), k.basis.dv.data(), nc * sizeof(int), cudaMemcpyHostToDevice));
   }
   const wind_warping::TileWindow t = tw_;
   const Launch ls = flat(static_cast<std::size_t>(t.wx()) * t.wy());
   const Launch lt = flat(static_cast<std::size_t>(t.tcny + 2) * (t.tcnx + 2));
   ERG_LAUNCH(shear_slope_kernel, ls.grid, ls.block, t, window_.get(), k.ex, k.ey,
              m_.coarse.cx * m_.coarse.cell_m, shear_slope_.get());
-  ERG_LAUNCH(shear_tau_kernel, lt.grid, lt.block, t, shear_slope_.get(), shear_k_.get(),
-             shear_du_.get(), shear_dv_.get(), k.taps, p, shear_tau_.get());
+  const shear_stress::TapsView kd{shear_k_.get(), shear_du_.get(), shear_dv_.get(), k.taps};
+  const shear_stress::TapsView cd{shear_c_.get(), shear_cdu_.get(), shear_cdv_.get(), k.basis.n};
+  ERG_LAUNCH(shear_tau_kernel, lt.grid, lt.block, t, shear_slope_.get(), window_.get(), kd, cd, p,
+             shear_tau_.get());
   return true;
 }
 
