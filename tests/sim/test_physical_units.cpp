@@ -151,7 +151,9 @@ TEST(PhysicalUnits, BelowThresholdNothingMoves) {
 // tau1 / tau0 = A k h0 (sin phi + B cos phi). A 128 m wavelength on 4 m
 // coarse cells, the wind at 30 degrees, the kernel truncated at 100 m: the
 // truncated lattice sum is within 2% of A k h0 (central differences: (k
-// delta)^2 / 6 = 0.6%; the truncation of the 1 / r^2 tail the rest).
+// delta)^2 / 6 = 0.6%, which the correction restores; the correction also
+// undoes a block mean and an interpolation that this test does not apply,
+// 1% at 128 m; the truncation of the 1 / r^2 tail the rest).
 TEST(PhysicalUnits, ShearStressOverASinusoidFollowsKroyEtAl) {
   const double delta = 4, lambda = 128, k = 2 * kPi / lambda, h0 = 1.5;
   const double ex = std::cos(30 * kPi / 180), ey = std::sin(30 * kPi / 180);
