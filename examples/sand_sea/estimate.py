@@ -16,10 +16,11 @@ INPUTS = {
     # MEASURED: the roofline of the same run, 12.5 ms at the STREAM triad's
     # 26-29 GB/s: bytes moved per cell and step.
     "bytes_per_cell_step": (12.5e-3 * 27.5e9 / 1024**2, "measured"),
-    # MEASURED: peak resident bytes per cell, CPU backend, --ranks 2 (README
-    # "Memory", 161-165 at 85-139 M cells); 104 while stepping.
-    "peak_bytes_per_cell": (165.0, "measured"),
-    "stepping_bytes_per_cell": (104.0, "measured"),
+    # MEASURED: peak resident bytes per cell, CPU backend, --ranks 2, 16384^2
+    # cells (README "Memory": 51 at peak and while stepping, a job without
+    # vegetation, resistance or obstacles, as sand_sea.json).
+    "peak_bytes_per_cell": (51.0, "measured"),
+    "stepping_bytes_per_cell": (51.0, "measured"),
     # MEASURED: halo messages per rank and step at 16, 32 and 64 ranks
     # (e2e.Ranks/ManyRanks.*: the same at every P; the Exchange counters).
     "messages_per_rank_step": (20.0, "measured"),
@@ -37,9 +38,10 @@ INPUTS = {
     # and step. A data-centre GPU (H100/H200, 3.4-4.8 TB/s against the 4080's
     # 0.72 TB/s) would be faster; we keep the 4080's number.
     "gpu_ns_per_cell": (1.0e6 / 1024**2, "assumed (N24, RTX 4080)"),
-    # ASSUMED: GPU memory per cell = the CPU backend's stepping set (the same
-    # registry fields on the device) plus the halo frames.
-    "gpu_bytes_per_cell": (110.0, "assumed (CPU stepping set + frames)"),
+    # ASSUMED: GPU memory per cell: the registry's 60 bytes of fields, each
+    # its own device buffer, plus work buffers and halo frames (not
+    # measured: no GPU here; kept conservative).
+    "gpu_bytes_per_cell": (110.0, "assumed (registry fields + work buffers + frames)"),
     "gpu_memory_bytes": (141e9, "assumed (H200, 141 GB)"),
     # ASSUMED: a CPU node of 64 cores with 300 GB/s of STREAM bandwidth (two
     # sockets of DDR5); its step is the larger of 32 x the 2-core compute
@@ -120,7 +122,7 @@ def sand_sea():
         nm = per * v("peak_bytes_per_cell")
         fits_g = "" if gm < v("gpu_memory_bytes") else " (does not fit)"
         fits_n = "" if nm < v("node_memory_bytes") else " (does not fit)"
-        print(f"| {n} | {gm / 1e9:.1f} GB{fits_g} | {fmt(g)} | {nm / 1e9:.0f} GB{fits_n} | "
+        print(f"| {n} | {gm / 1e9:.1f} GB{fits_g} | {fmt(g)} | {nm / 1e9:.1f} GB{fits_n} | "
               f"{fmt(c)} |")
 
 
