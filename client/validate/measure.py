@@ -385,6 +385,80 @@ def spectrum_wavelength(height, cell_size_m):
             "wavevector_deg": direction}
 
 
+# --- what a periodic domain resolves --------------------------------------------
+#
+# On a torus of sides Lx x Ly a pattern is a sum of the wavevectors
+# (m / Lx, n / Ly) cycles per metre, m and n integers: its wavelength can only
+# be 1 / |(m / Lx, n / Ly)| and a straight crest only lie across one of those
+# lattice vectors (it must close on itself across the seams). A law that reads
+# a wavelength or a crest orientation is judged only where the admissible
+# values near the measured one are spaced at most half the law's tolerance
+# apart (docs/dune-forms.md, "What a periodic domain can resolve").
+
+def wavelength_resolution(wavelength_m, period_m):
+    """Relative spacing of the wavelengths a torus admits near `wavelength_m`
+    for a pattern whose crests lie across an axis of length `period_m`: the
+    mode number there is k = floor(L / lambda) and the neighbouring admissible
+    wavelengths L / k and L / (k + 1) differ by 1 / k of the shorter."""
+    return 1.0 / max(1, int(math.floor(period_m / wavelength_m)))
+
+
+def admissible_crests(wavelength_m, lx_m, ly_m):
+    """The crest orientations (degrees in [0, 180), sorted) that a torus of
+    lx_m x ly_m admits for a pattern of wavelength `wavelength_m`: those of the
+    lattice wavevectors whose length lies within half a mode (0.5 / min(Lx,
+    Ly) cycles per metre) of 1 / lambda, the same rounding as the wavelength's."""
+    k0 = 1.0 / wavelength_m
+    half = 0.5 / min(lx_m, ly_m)
+    mmax = int(math.ceil((k0 + half) * lx_m)) + 1
+    nmax = int(math.ceil((k0 + half) * ly_m)) + 1
+    m = np.arange(-mmax, mmax + 1, dtype=np.float64)[None, :]
+    n = np.arange(0, nmax + 1, dtype=np.float64)[:, None]
+    kx, ky = np.broadcast_arrays(m / lx_m, n / ly_m)
+    # One of each pair +-(m, n): n > 0, or n = 0 and m > 0.
+    half_plane = (ky > 0) | ((ky == 0) & (kx > 0))
+    shell = half_plane & (np.abs(np.hypot(kx, ky) - k0) <= half)
+    crest = (np.degrees(np.arctan2(ky[shell], kx[shell])) + 90.0) % 180.0
+    return np.unique(np.round(crest, 9))
+
+
+def orientation_resolution(wavelength_m, lx_m, ly_m, predicted_deg, tolerance_deg):
+    """How finely a torus resolves a crest orientation near `predicted_deg`
+    for a pattern of wavelength `wavelength_m`: the largest gap (degrees)
+    between neighbouring admissible orientations (admissible_crests) that
+    reaches into predicted +/- tolerance; the admissible orientation nearest
+    the prediction; and the widest difference from the prediction that the
+    lattice alone can force on a pattern that obeys the law within the
+    tolerance (the farthest from it of the admissible orientations nearest to
+    some orientation inside the window). Returns a dict with gap_deg,
+    nearest_deg, lattice_tolerance_deg and admissible (how many in all)."""
+    crests = admissible_crests(wavelength_m, lx_m, ly_m)
+    if crests.size == 0:
+        return {"gap_deg": 180.0, "nearest_deg": float("nan"),
+                "lattice_tolerance_deg": 90.0, "admissible": 0}
+    # Offsets from the prediction in (-90, 90], sorted, with the wrap.
+    off = np.sort((crests - predicted_deg + 90.0) % 180.0 - 90.0)
+    ext = np.concatenate([off - 180.0, off, off + 180.0])
+    gap = 0.0
+    for a, b in zip(ext[:-1], ext[1:]):
+        if b >= -tolerance_deg and a <= tolerance_deg:
+            gap = max(gap, float(b - a))
+    # The admissible orientation nearest each point of the window: those
+    # inside it, and the first one outside an edge when it is nearer to that
+    # edge than the first one inside.
+    t = tolerance_deg
+    reach = max([float(abs(x)) for x in ext[np.abs(ext) <= t]], default=0.0)
+    below, up_from = float(ext[ext < -t].max()), float(ext[ext >= -t].min())
+    if -t - below < up_from + t:
+        reach = max(reach, -below)
+    above, down_from = float(ext[ext > t].min()), float(ext[ext <= t].max())
+    if above - t < t - down_from:
+        reach = max(reach, above)
+    nearest = float(off[np.argmin(np.abs(off))]) + predicted_deg
+    return {"gap_deg": gap, "nearest_deg": nearest % 180.0,
+            "lattice_tolerance_deg": min(reach, 90.0), "admissible": int(crests.size)}
+
+
 # --- mass ------------------------------------------------------------------------
 
 def sand_total_units(snap):

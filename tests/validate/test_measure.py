@@ -399,10 +399,96 @@ class Orientation(unittest.TestCase):
         self.assertTrue(math.isnan(e["axis_deg"]))
 
 
+class Lattice(unittest.TestCase):
+    """What a torus admits: wavelengths L / |(m, n)| and crests across the
+    lattice vectors (docs/dune-forms.md, "What a periodic domain can resolve")."""
+
+    def test_wavelength_spacing(self):
+        # 65 m on 256 m: mode 3 (85.3 m) and 4 (64 m), a third apart; on 1300 m
+        # mode 20 and 21, 5% apart: the transverse law's half tolerance.
+        self.assertAlmostEqual(M.wavelength_resolution(65.0, 256.0), 1 / 3)
+        self.assertAlmostEqual(M.wavelength_resolution(50.4, 256.0), 1 / 5)
+        self.assertAlmostEqual(M.wavelength_resolution(65.0, 1300.0), 0.05)
+        self.assertAlmostEqual(M.wavelength_resolution(500.0, 256.0), 1.0)
+
+    def test_admissible_crests_of_a_small_torus(self):
+        # 34 m on 128 m: the shell |(m, n)| within 0.5 of 3.76 holds (4, 0),
+        # (4, 1), (3, 2) and their turns: crests at 90, 14.04 + 90 k, 33.69 + 90 k...
+        crests = M.admissible_crests(34.0, 128.0, 128.0)
+        for c in (0.0, 90.0, 45.0, 56.31, 75.96, 14.04, 33.69):
+            self.assertLess(np.min(np.abs(crests - c)), 0.01, c)
+        r = M.orientation_resolution(34.0, 128.0, 128.0, 50.0, 5.0)
+        # Between 45 and 56.31 nothing: the prediction of 100/1 cannot be met closer than 5 deg.
+        self.assertAlmostEqual(r["gap_deg"], 11.31, places=2)
+        self.assertAlmostEqual(r["nearest_deg"], 45.0, places=6)
+        # A pattern obeying the law (45-55 deg) can be moved to 45 or to 56.31.
+        self.assertAlmostEqual(r["lattice_tolerance_deg"], 6.31, places=2)
+        self.assertFalse(np.any((crests > 45.01) & (crests < 56.3)))
+
+    def test_a_large_torus_resolves_five_degrees(self):
+        for lam in (34.0, 37.0, 39.0):
+            for pred in (50.0, 73.67, 86.8):
+                r = M.orientation_resolution(lam, 1280.0, 1280.0, pred, 5.0)
+                self.assertLessEqual(r["gap_deg"], 2.5, (lam, pred))
+                self.assertGreater(M.orientation_resolution(lam, 128.0, 128.0, pred, 5.0)["gap_deg"], 10.0)
+
+    def test_lattice_sinusoids_are_admissible(self):
+        # A sinusoid of wavevector (m, n) on the torus: its crest orientation is admissible at its
+        # own wavelength, and the spectrum measures both.
+        x, y = grid(160, 128, 1.0)
+        for m, n in ((3, 2), (-4, 1), (0, 5), (6, 0)):
+            h = np.cos(2 * math.pi * (m * x / 160.0 + n * y / 128.0))
+            sp = M.spectrum_wavelength(h, 1.0)
+            crest = (sp["wavevector_deg"] + 90.0) % 180.0
+            crests = M.admissible_crests(sp["wavelength_m"], 160.0, 128.0)
+            self.assertLess(np.min(np.abs(crests - crest)), 1e-6, (m, n))
+
+
+class TransverseSection(unittest.TestCase):
+    """validate.py's section 4 on synthetic final snapshots: the same
+    transverse ridges at two cell sizes pass on a torus that resolves the
+    10% law (1300 m: wavelengths 5% apart near 65 m), a change of 20% fails
+    there, and the same change on a 256 m torus (wavelengths 20-25% apart)
+    is UNRESOLVED."""
+
+    def section(self, fields):
+        import json
+        import tempfile
+        from pathlib import Path
+        import validate as V
+        T = json.loads(Path(os.path.dirname(M.__file__), "thresholds.json").read_text())
+        job = {"wind": {"constant": {"speed_mps": 5, "direction_deg": 0}}}
+        scenes = [(f"t{cell:g}", {"sand": h, "bedrock": np.zeros_like(h), "cell_size_m": cell, "step": 2500}, job)
+                  for cell, h in fields]
+        with tempfile.TemporaryDirectory() as tmp:
+            rep = V.Report(Path(tmp))
+            V.transverse_law(rep, T, scenes)
+        return rep
+
+    def ridges(self, length_m, cell, modes):
+        x, _ = grid(int(length_m / cell), int(length_m / cell), cell)
+        return 3.0 + np.sin(2 * math.pi * modes * x / length_m)
+
+    def test_resolved_pass_and_fail_unresolved(self):
+        # 4 m and 2 m cells keep the test fast; the lattice is the torus's, not the cells'.
+        rep = self.section([(4.0, self.ridges(1300.0, 4.0, 20)), (2.0, self.ridges(1300.0, 2.0, 20))])
+        self.assertEqual([ok for _, ok, _ in rep.summary], [True, True])
+        self.assertIn("| 4 m | 90.0 | 1.00 | 90.0 | 65.0 | 65.0 | 5.0% | ", "\n".join(rep.lines))
+        rep = self.section([(4.0, self.ridges(1300.0, 4.0, 20)), (2.0, self.ridges(1300.0, 2.0, 25))])
+        self.assertEqual([ok for _, ok, _ in rep.summary], [True, False])
+        rep = self.section([(2.0, self.ridges(256.0, 2.0, 4)), (1.0, self.ridges(256.0, 1.0, 5))])
+        self.assertEqual([ok for _, ok, _ in rep.summary], [None, None])
+        text = "\n".join(rep.lines)
+        self.assertIn("a change of **20.0%** (allowed < 10%). **UNRESOLVED**: 10.0 points over; the torus admits "
+                      "wavelengths 25% and 20% apart there", text)
+
+
 class OrientationSection(unittest.TestCase):
     """validate.py's section 10 on synthetic last snapshots: ridges and
     fingers drawn at the predicted orientation pass, ridges drawn at the
-    other mode's orientation fail, with the measured numbers in the table."""
+    other mode's orientation fail, with the measured numbers in the table;
+    ridges on a torus whose lattice cannot resolve 5 deg are UNRESOLVED
+    even when drawn at the prediction."""
 
     def test_section_passes_and_fails_as_drawn(self):
         import json
@@ -418,15 +504,23 @@ class OrientationSection(unittest.TestCase):
                     "wind": {"bidirectional": {"speed_mps": 5, "direction_deg": 0, "angle_deg": theta,
                                                "flux_ratio": n, "period_steps": 20}}}
 
-        def snap(sand, step):
-            return {"sand": sand, "bedrock": np.zeros_like(sand), "cell_size_m": 1.0, "step": step}
+        def snap(sand, step, cell=1.0):
+            return {"sand": sand, "bedrock": np.zeros_like(sand), "cell_size_m": cell, "step": step}
 
         x, y = grid(256, 256, 1.0)
         rng = np.random.default_rng(3)
         flat = 2.5 + rng.uniform(0, 1, x.shape)
         # theta = 120, N = 2: crests at 73.67 deg; wavevector (-7, 2) cycles
-        # over 256 m points at 164.05 deg, crests at 74.05 deg.
+        # over 256 m points at 164.05 deg, crests at 74.05 deg, 35.2 m apart.
+        # The torus admits crests 7.8 deg apart there: UNRESOLVED.
         ridges = 3.0 + 2.0 * np.sin(2 * math.pi * (-7 * x + 2 * y) / 256.0)
+        # The same ridges, (-35, 10) cycles over 1280 m at 2 m cells: the
+        # lattice's gaps there are under 2.5 deg.
+        bx, by = grid(640, 640, 2.0)
+        big = 3.0 + 2.0 * np.sin(2 * math.pi * (-35 * bx + 10 * by) / 1280.0)
+        bflat = 2.5 + rng.uniform(0, 1, bx.shape)
+        bjob = job("bed-ok", 120, 2)
+        bjob["domain"] = {"nx": 640, "ny": 640, "cell_size_m": 2.0}
         # The same ridges turned to the fingering orientation (39.24 deg):
         # wavevector (-6, 7) at 130.60 deg, crests at 40.60 deg.
         wrong = 3.0 + 2.0 * np.sin(2 * math.pi * (-6 * x + 7 * y) / 256.0)
@@ -438,7 +532,7 @@ class OrientationSection(unittest.TestCase):
             u, v = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
             fingers += 4.0 * np.exp(-0.5 * ((u / 30.0) ** 2 + (v / 5.0) ** 2))
         scenes = [
-            ("orientation_bed_120_2", [snap(flat, 0), snap(ridges, 400)], job("bed-ok", 120, 2)),
+            ("orientation_bed_120_2", [snap(bflat, 0, 2.0), snap(big, 400, 2.0)], bjob),
             ("orientation_bed_120_2_b", [snap(flat, 0), snap(wrong, 400)], job("bed-wrong", 120, 2, "STOCHASTIC")),
             ("orientation_finger_140_3", [snap(fingers, 0), snap(fingers, 400)], job("finger-ok", 140, 3, sand={"piles": [
                 {"x_m": 60, "y_m": 60, "height": 4, "radius_m": 20}]})),
@@ -451,7 +545,8 @@ class OrientationSection(unittest.TestCase):
         self.assertIn("Scene finger-ok: 256 x 256 cells of 1 m, 400 steps, EXPECTED with slabs of 0.1 m, "
                       "a pile 4 m high of 20 m radius at (60, 60) m on bare rock.", text)
         rows = {l.split(" | ")[0][2:]: l for l in text.splitlines() if l.startswith("| bed-") or l.startswith("| finger-")}
-        self.assertRegex(rows["bed-ok"], r"\| 73\.7 \| 39\.2 \| 7[34]\.\d \| 0\.\d \|.*\| PASS \|$")
+        self.assertRegex(rows["bed-ok"], r"\| 73\.7 \| 39\.2 \| 7[34]\.\d \| 0\.\d \|.*\| [0-2]\.\d \(nearest "
+                                         r"admissible 7[34]\.\d.*\| PASS \|$")
         self.assertRegex(rows["bed-wrong"], r"\| 73\.7 \| 39\.2 \| 40\.\d \| 33\.\d \|.*\| FAIL \|$")
         self.assertRegex(rows["finger-ok"], r"\| 26\.1 \| 81\.1 \| 26\.\d \| 0\.\d \|.*\| PASS \|$")
         verdicts = {name: ok for name, ok, _ in rep.summary}
@@ -459,6 +554,15 @@ class OrientationSection(unittest.TestCase):
             "Two-wind orientation, bed instability (EXPECTED)": True,
             "Two-wind orientation, bed instability (STOCHASTIC)": False,
             "Two-wind orientation, fingering (EXPECTED)": True})
+        # The 256 m ridges at the prediction: not judged.
+        with tempfile.TemporaryDirectory() as tmp:
+            rep = V.Report(Path(tmp))
+            V.orientation_law(rep, T, [("orientation_bed_120_2", [snap(flat, 0), snap(ridges, 400)],
+                                        job("bed-small", 120, 2))])
+        row = [l for l in rep.lines if l.startswith("| bed-small")][0]
+        self.assertRegex(row, r"\| 74\.0 \| 0\.3 \|.*\| 7\.8 \(nearest admissible 74\.1; can move it [0-9.]+\) "
+                              r"\| UNRESOLVED \|$")
+        self.assertEqual([ok for _, ok, _ in rep.summary], [None])
 
 
 if __name__ == "__main__":
