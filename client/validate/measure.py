@@ -447,7 +447,8 @@ def orientation_resolution(wavelength_m, lx_m, ly_m, predicted_deg, tolerance_de
     # inside it, and the first one outside an edge when it is nearer to that
     # edge than the first one inside.
     t = tolerance_deg
-    reach = max([float(abs(x)) for x in ext[np.abs(ext) <= t]], default=0.0)
+    # At least the tolerance: an obeying pattern may sit anywhere inside it.
+    reach = max([t] + [float(abs(x)) for x in ext[np.abs(ext) <= t]])
     below, up_from = float(ext[ext < -t].max()), float(ext[ext >= -t].min())
     if -t - below < up_from + t:
         reach = max(reach, -below)

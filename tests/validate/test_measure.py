@@ -424,6 +424,11 @@ class Lattice(unittest.TestCase):
         # A pattern obeying the law (45-55 deg) can be moved to 45 or to 56.31.
         self.assertAlmostEqual(r["lattice_tolerance_deg"], 6.31, places=2)
         self.assertFalse(np.any((crests > 45.01) & (crests < 56.3)))
+        # 37 m on 128 m near 73.67 deg: only 71.57 within reach; the lattice
+        # tolerance is never below the law's own.
+        r = M.orientation_resolution(37.0, 128.0, 128.0, 73.67, 5.0)
+        self.assertAlmostEqual(r["nearest_deg"], 71.565, places=2)
+        self.assertEqual(r["lattice_tolerance_deg"], 5.0)
 
     def test_a_large_torus_resolves_five_degrees(self):
         for lam in (34.0, 37.0, 39.0):
