@@ -157,8 +157,13 @@ class Slurm(ErgdTest):
         script = os.path.join(os.path.dirname(__file__), "..", "..", "deploy", "slurm",
                               "erg-run.sbatch")
         env = dict(self.cluster.env, ERG_BIN=os.path.dirname(ERG))
+        # The script asks for its walltime warning 300 s before the end: with
+        # a limit of 5 minutes that is at once (Slurm sends it within a
+        # minute), and the worker stops at a checkpoint instead of finishing
+        # whenever the machine is slow. The warning is tested in test_3.
         r = subprocess.run(["sbatch", "--parsable", "--ntasks=2", "--cpus-per-task=1",
-                            "--time=5", "--output=" + os.path.join(self.tmpdir, "sbatch-%j.out"),
+                            "--time=10", "--signal=B:TERM@60",
+                            "--output=" + os.path.join(self.tmpdir, "sbatch-%j.out"),
                             script, self.job_file(d, "sbatch"), out],
                            capture_output=True, text=True, env=env, check=True)
         slurm_id = r.stdout.strip().split(";")[0]
