@@ -13,8 +13,17 @@
 // and i k_x is D h itself:
 //   tau1 / tau0 = A [ (K * D h) + B D h ].
 // The stress rises over the windward slope, peaks upwind of the crest (the B
-// term) and falls in the lee; u* follows sqrt(tau):
-//   u* = u*0 sqrt(max(1 + tau1 / tau0, 0)).
+// term) and falls in the lee. Its component across the wind (the same
+// paper, sec. II), k_y along e_perp, the wind's direction turned +90 deg:
+//   tau_y_hat / tau0 = A (k_x k_y / |k|) h_hat,
+// in real space the same kernel on the slope across the wind, D_perp h =
+// e_perp . grad h: tau_y / tau0 = A (K * D_perp h). On the windward flanks
+// of a hill it points away from the hill's axis, in the lee towards it: the
+// flow goes round the hill. The surface stress is the vector
+//   tau / tau0 = (1 + tau1 / tau0) e + (tau_y / tau0) e_perp,
+// the along-wind part clipped at 0 (no reversed flow: the lee, which the
+// shadow stops anyway); u* follows the square root of its magnitude and the
+// surface wind turns to its direction (`surface_wind`).
 //
 // It is computed on the coarse window of the wind warping
 // (stages/wind_warping.h): the exact coarse block means of the heights,
@@ -27,7 +36,10 @@
 // docs/physical-units.md), so a short correction on the heights, designed
 // once from the theory's transfer function divided by the window's own
 // (`correction_basis`), brings both within a few percent of the theory
-// from 16 m to 128 m: tau1 / tau0 = A [ (K * D h) + B D h + (C * h) ]. Every coarse output is then
+// from 16 m to 128 m: tau1 / tau0 = A [ (K * D h) + B D h + (C * h) ], and
+// the same for the component across the wind, tau_y / tau0 = A [ (K *
+// D_perp h) + (C_perp * h) ], C_perp designed the same way from the
+// theory's k_x k_y / |k|. Every coarse output is then
 // a function of the same coarse values in the same order on any tiling, so the bits do not depend
 // on it (docs/design.md, "Wind warping").
 #pragma once
@@ -105,13 +117,19 @@ inline int kernel_capacity(int r) {
 // y), each set the inverse transform, on a kDesignGrid^2 torus of coarse
 // cells, of its part of the difference; the sets x and y (odd) lose their
 // first moments, so that B D h alone carries the slope at long
-// wavelengths. Applied as sum_n w[n] (h(p - o_n) - h(p)): exactly 0 on flat
-// ground. Plain loops in one fixed order, and cosines from one table, so
-// every rank computes the same bits.
+// wavelengths. The component across the wind, A k_x k_y / |k| against the
+// window's truncated kernel times the central differences across the wind,
+// is (ex^2 - ey^2) xy + ex ey (yy - xx) + z with one more set z: the
+// window's part that is not of the theory's form (with the truncated
+// kernel's transforms Gx, Gy and the central differences' sx, sy, the
+// window's lateral response is 2 (ex Gx + ey Gy)(ex sy - ey sx), which
+// differs from the theory's in its ex^2 and ey^2 terms by Gy sx - Gx sy). Applied as sum_n w[n]
+// (h(p - o_n) - h(p)): exactly 0 on flat ground. Plain loops in one fixed order, and cosines from
+// one table, so every rank computes the same bits.
 constexpr int kCorrectionRadius = 8;  // coarse cells (32 m on 4 m cells)
 constexpr int kDesignGrid = 128;      // coarse cells
 struct Basis {
-  std::vector<double> xx, xy, yy, x, y;
+  std::vector<double> xx, xy, yy, x, y, z;
   std::vector<int> du, dv;
   int n = 0;
 };
@@ -149,7 +167,7 @@ inline Basis correction_basis(int radius, int cx, int cy) {
   };
   // The five parts of the difference at every wavenumber (m, l) of the torus.
   const size_t nn = static_cast<size_t>(N) * N;
-  std::vector<double> cxx(nn), cxy(nn), cyy(nn), cxo(nn), cyo(nn);
+  std::vector<double> cxx(nn), cxy(nn), cyy(nn), cxo(nn), cyo(nn), cz(nn);
   for (int l = 0; l < N; ++l)
     for (int m = 0; m < N; ++m) {
       const int ms = m < N / 2 ? m : m - N, ls = l < N / 2 ? l : l - N;
@@ -171,12 +189,13 @@ inline Basis correction_basis(int radius, int cx, int cy) {
       cyy[at] = ky * ky * q - 2.0 * sy * gyy;
       cxo[at] = kx * f - sx;  // times i
       cyo[at] = ky * f - sy;
+      cz[at] = gyy * sx - gxx * sy;  // the lateral part's own (even in k)
     }
   Basis b;
   for (int v = -rc; v <= rc; ++v)
     for (int u = -rc; u <= rc; ++u) {
       if ((u == 0 && v == 0) || u * u + v * v > rc * rc) continue;
-      double wxx = 0, wxy = 0, wyy = 0, wx = 0, wy = 0;
+      double wxx = 0, wxy = 0, wyy = 0, wx = 0, wy = 0, wz = 0;
       for (int l = 0; l < N; ++l)
         for (int m = 0; m < N; ++m) {
           const size_t at = static_cast<size_t>(l) * N + m;
@@ -185,6 +204,7 @@ inline Basis correction_basis(int radius, int cx, int cy) {
           wxx += cxx[at] * c;
           wxy += cxy[at] * c;
           wyy += cyy[at] * c;
+          wz += cz[at] * c;
           wx -= cxo[at] * s;  // the real part of i C e^{i k . o}
           wy -= cyo[at] * s;
         }
@@ -194,6 +214,7 @@ inline Basis correction_basis(int radius, int cx, int cy) {
       b.yy.push_back(wyy * inv);
       b.x.push_back(wx * inv);
       b.y.push_back(wy * inv);
+      b.z.push_back(wz * inv);
       b.du.push_back(u);
       b.dv.push_back(v);
     }
@@ -227,7 +248,8 @@ struct Kernel {
   int taps = 0;
   double ex = 0, ey = 0;
   Basis basis;
-  std::vector<double> c;  // the correction for (ex, ey) and B, over delta_m
+  std::vector<double> c;   // the correction for (ex, ey) and B, over delta_m
+  std::vector<double> cp;  // the correction across the wind, over delta_m
   bool aim(Vec2 a, const Params& p) {
     const double ax = a.x, ay = a.y, len = std::sqrt(ax * ax + ay * ay);
     if (!(len > 0.0)) return false;
@@ -247,10 +269,16 @@ struct Kernel {
       c[n] = (ex * ex * basis.xx[n] + 2.0 * ex * ey * basis.xy[n] + ey * ey * basis.yy[n] +
               b * (ex * basis.x[n] + ey * basis.y[n])) /
              p.delta_m;
+    cp.resize(c.size());
+    for (size_t n = 0; n < cp.size(); ++n)
+      cp[n] =
+          ((ex * ex - ey * ey) * basis.xy[n] + ex * ey * (basis.yy[n] - basis.xx[n]) + basis.z[n]) /
+          p.delta_m;
     return true;
   }
   TapsView kernel_taps() const { return {k.data(), du.data(), dv.data(), taps}; }
   TapsView correction_taps() const { return {c.data(), basis.du.data(), basis.dv.data(), basis.n}; }
+  TapsView lateral_taps() const { return {cp.data(), basis.du.data(), basis.dv.data(), basis.n}; }
 };
 
 // D h = e . grad h by central differences at window cell (i, j) of a
@@ -283,6 +311,42 @@ ERG_HD float perturbation_at(const double* slope, const double* height, int wx, 
     t += c.w[n] * (h[-o] - h[0]);
   }
   return static_cast<float>(static_cast<double>(p.a) * ((s + static_cast<double>(p.b) * d[0]) + t));
+}
+
+// tau_y / tau0 at window cell (i, j): A [ sum_n k[n] (P(p - o_n) - P(p +
+// o_n)) + sum_n c[n] (h(p - o_n) - h(p)) ], `slope` holding D_perp h (the
+// slope across the wind: slope_at with the direction (-ey, ex)) and `c` the
+// lateral correction's taps, each sum in its taps' order.
+ERG_HD float lateral_at(const double* slope, const double* height, int wx, TapsView k, TapsView c,
+                        Params p, int i, int j) {
+  const long at = static_cast<long>(j) * wx + i;
+  const double* d = slope + at;
+  double s = 0.0;
+  for (int n = 0; n < k.n; ++n) {
+    const long o = static_cast<long>(k.dv[n]) * wx + k.du[n];
+    s += k.w[n] * (d[-o] - d[o]);
+  }
+  const double* h = height + at;
+  double t = 0.0;
+  for (int n = 0; n < c.n; ++n) {
+    const long o = static_cast<long>(c.dv[n]) * wx + c.du[n];
+    t += c.w[n] * (h[-o] - h[0]);
+  }
+  return static_cast<float>(static_cast<double>(p.a) * (s + t));
+}
+
+// The surface wind w under the stress vector tau / tau0 = (1 + tau1) e +
+// tau_y e_perp, tau1 and tau_y relative to the undisturbed wind e: turned
+// by the stress's angle to e and scaled by the square root of its magnitude
+// m (u* ~ sqrt(tau)); the along-wind part clipped at 0. With v = max(1 +
+// tau1, 0): w' = (v w + tau_y w_perp) / sqrt(m), m = |(v, tau_y)|, w_perp =
+// w turned +90 deg; 0 where m is 0. Flat ground (0, 0) gives w back within
+// a rounding of the float square roots (used only with the stress on).
+ERG_HD Vec2 surface_wind(float tau1, float tau_y, Vec2 w) {
+  const float v = max_of(1.0f + tau1, 0.0f);
+  const float m = sqrtf(v * v + tau_y * tau_y);
+  const float g = m > 0.0f ? 1.0f / sqrtf(m) : 0.0f;
+  return {g * (v * w.x - tau_y * w.y), g * (v * w.y + tau_y * w.x)};
 }
 
 // The speed-up of u* (and of the surface wind, which carries it) for a

@@ -120,8 +120,8 @@ class CpuBackend final : public Backend {
   // shear stress over relief (physical modes): taps, e . grad h over the
   // window, tau1 / tau0 at the tile's coarse cells -1 .. tcn
   shear_stress::Kernel shear_kernel_;
-  std::vector<double> shear_slope_;
-  std::vector<float> shear_tau_;
+  std::vector<double> shear_slope_, shear_slope_perp_;  // along and across the wind
+  std::vector<float> shear_tau_, shear_tau_y_;          // tau1 / tau0 and tau_y / tau0
   bool shear_field(Vec2 a);  // wind.cpp: false when there is none (model units, still air)
   bool shear_on_ = false;    // shear_field's answer for the last wind(), which warp_rows reads
   // Coarse interpolation stencils: per column (as arrays) and per row.

@@ -163,13 +163,14 @@ void CpuBackend::heights() {
   }
 }
 
-// tau1 / tau0 of the shear stress over relief at the tile's coarse cells
-// -1 .. tcn (stages/shear_stress.h), from the coarse window: e . grad h over
-// the window's inner cells, then the truncated kernel and the correction,
-// with the taps in the outer loop and a row of outputs in the inner one (it
-// vectorises); every output still sums each set of taps in its order from
-// 0, then adds B D h and the correction and multiplies by A: the bits of
-// shear_stress::perturbation_at (the GPU's), whatever the threads.
+// tau1 / tau0 and tau_y / tau0 of the shear stress over relief at the
+// tile's coarse cells -1 .. tcn (stages/shear_stress.h), from the coarse
+// window: e . grad h and e_perp . grad h over the window's inner cells, then
+// the truncated kernel and the corrections, with the taps in the outer loop
+// and a row of outputs in the inner one (it vectorises); every output still
+// sums each set of taps in its order from 0, then adds B D h and the
+// correction and multiplies by A: the bits of shear_stress::perturbation_at
+// and shear_stress::lateral_at (the GPU's), whatever the threads.
 bool CpuBackend::shear_field(Vec2 a) {
   const shear_stress::Params p = m_.shear;
   if (!p.on || !shear_kernel_.aim(a, p)) return false;
@@ -178,23 +179,25 @@ bool CpuBackend::shear_field(Vec2 a) {
   const double delta = m_.coarse.cx * m_.coarse.cell_m;
   const double ex = shear_kernel_.ex, ey = shear_kernel_.ey;
   shear_slope_.assign(static_cast<size_t>(wx) * wy, 0.0);
+  shear_slope_perp_.assign(static_cast<size_t>(wx) * wy, 0.0);
   shear_tau_.resize(static_cast<size_t>(gnx) * gny);
+  shear_tau_y_.resize(static_cast<size_t>(gnx) * gny);
   const shear_stress::TapsView k = shear_kernel_.kernel_taps();
   const shear_stress::TapsView c = shear_kernel_.correction_taps();
+  const shear_stress::TapsView cp = shear_kernel_.lateral_taps();
 #pragma omp parallel num_threads(threads_)
   {
 #pragma omp for schedule(static)
     for (int j = 1; j < wy - 1; ++j)
-      for (int i = 1; i < wx - 1; ++i)
-        shear_slope_[static_cast<size_t>(j) * wx + i] =
-            shear_stress::slope_at(window_.data(), wx, ex, ey, delta, i, j);
+      for (int i = 1; i < wx - 1; ++i) {
+        const size_t at = static_cast<size_t>(j) * wx + i;
+        shear_slope_[at] = shear_stress::slope_at(window_.data(), wx, ex, ey, delta, i, j);
+        shear_slope_perp_[at] = shear_stress::slope_at(window_.data(), wx, -ey, ex, delta, i, j);
+      }
     std::vector<double> acc(static_cast<size_t>(gnx)), cor(static_cast<size_t>(gnx));
-#pragma omp for schedule(static)
-    for (int j = 0; j < gny; ++j) {
-      // Output (i, j) is window cell (hx - 1 + i, hy - 1 + j).
-      const size_t at = static_cast<size_t>(t.hy - 1 + j) * wx + t.hx - 1;
-      const double* centre = shear_slope_.data() + at;
-      const double* h = window_.data() + at;
+    // One component: sum_n k[n] (D(p - o_n) - D(p + o_n)) into acc, sum_n
+    // c[n] (h(p - o_n) - h(p)) into cor, over a row of outputs.
+    auto sums = [&](const double* centre, const double* h, shear_stress::TapsView cc) {
       std::fill(acc.begin(), acc.end(), 0.0);
       std::fill(cor.begin(), cor.end(), 0.0);
       double* __restrict s = acc.data();
@@ -206,16 +209,27 @@ bool CpuBackend::shear_field(Vec2 a) {
         for (int i = 0; i < gnx; ++i) s[i] += w * (lo[i] - hi[i]);
       }
       double* __restrict q = cor.data();
-      for (int n = 0; n < c.n; ++n) {
-        const long o = static_cast<long>(c.dv[n]) * wx + c.du[n];
-        const double w = c.w[n];
+      for (int n = 0; n < cc.n; ++n) {
+        const long o = static_cast<long>(cc.dv[n]) * wx + cc.du[n];
+        const double w = cc.w[n];
         const double* __restrict lo = h - o;
         for (int i = 0; i < gnx; ++i) q[i] += w * (lo[i] - h[i]);
       }
-      float* __restrict out = shear_tau_.data() + static_cast<size_t>(j) * gnx;
+    };
+#pragma omp for schedule(static)
+    for (int j = 0; j < gny; ++j) {
+      // Output (i, j) is window cell (hx - 1 + i, hy - 1 + j).
+      const size_t at = static_cast<size_t>(t.hy - 1 + j) * wx + t.hx - 1;
+      const double* h = window_.data() + at;
       const double a = p.a, b = p.b;
+      const double* centre = shear_slope_.data() + at;
+      sums(centre, h, c);
+      float* __restrict out = shear_tau_.data() + static_cast<size_t>(j) * gnx;
       for (int i = 0; i < gnx; ++i)
-        out[i] = static_cast<float>(a * ((s[i] + b * centre[i]) + q[i]));
+        out[i] = static_cast<float>(a * ((acc[i] + b * centre[i]) + cor[i]));
+      sums(shear_slope_perp_.data() + at, h, cp);
+      float* __restrict out_y = shear_tau_y_.data() + static_cast<size_t>(j) * gnx;
+      for (int i = 0; i < gnx; ++i) out_y[i] = static_cast<float>(a * (acc[i] + cor[i]));
     }
   }
   return true;
@@ -260,7 +274,7 @@ void CpuBackend::warp_rows(Vec2 a) {
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int y = 0; y < g_.ny; ++y) {
     const wind_warping::Axis ay = axis_y_[static_cast<size_t>(y)];
-    std::vector<float> rows(5 * static_cast<size_t>(gnx));
+    std::vector<float> rows(6 * static_cast<size_t>(gnx));
     const std::vector<float>* fields[4] = {&grad_x_[0], &grad_y_[0], &grad_x_[1], &grad_y_[1]};
     for (int f = 0; f < 4; ++f)
       for (int i = 0; i < gnx; ++i)
@@ -270,17 +284,25 @@ void CpuBackend::warp_rows(Vec2 a) {
              axis_x_i0_.data(), axis_x_i1_.data(), axis_x_t_.data(), rows.data(), rows.data() + gnx,
              rows.data() + 2 * gnx, rows.data() + 3 * gnx);
     if (!shear_on_) continue;
-    // The surface wind carries u*: times sqrt(max(1 + tau1 / tau0, 0)),
-    // interpolated as the gradients are (the bits of wind_warping::sample_at).
+    // The surface wind carries u*: turned to the stress's direction and
+    // scaled by the square root of its magnitude (shear_stress::surface_wind),
+    // both components interpolated as the gradients are (the bits of
+    // wind_warping::sample_at).
     float* tau = rows.data() + 4 * static_cast<size_t>(gnx);
-    for (int i = 0; i < gnx; ++i) tau[i] = wind_warping::lerp_rows(shear_tau_.data(), gnx, ay, i);
+    float* tau_y = rows.data() + 5 * static_cast<size_t>(gnx);
+    for (int i = 0; i < gnx; ++i) {
+      tau[i] = wind_warping::lerp_rows(shear_tau_.data(), gnx, ay, i);
+      tau_y[i] = wind_warping::lerp_rows(shear_tau_y_.data(), gnx, ay, i);
+    }
     float* __restrict wx = f_.wind_x.row(y);
     float* __restrict wy = f_.wind_y.row(y);
     for (int x = 0; x < g_.nx; ++x) {
       const wind_warping::Axis ax{axis_x_i0_[x], axis_x_i1_[x], axis_x_t_[x]};
-      const float s = shear_stress::speedup(wind_warping::lerp_columns(tau[ax.i0], tau[ax.i1], ax));
-      wx[x] = s * wx[x];
-      wy[x] = s * wy[x];
+      const Vec2 w = shear_stress::surface_wind(
+          wind_warping::lerp_columns(tau[ax.i0], tau[ax.i1], ax),
+          wind_warping::lerp_columns(tau_y[ax.i0], tau_y[ax.i1], ax), {wx[x], wy[x]});
+      wx[x] = w.x;
+      wy[x] = w.y;
     }
   }
 }

@@ -371,7 +371,9 @@ CudaBackend::CudaBackend(const Model& model, dist::Exchange& ex, int local_rank)
 
   if (m_.shear.on) {
     shear_slope_.reset(static_cast<std::size_t>(tw_.wx()) * tw_.wy());
+    shear_slope_perp_.reset(static_cast<std::size_t>(tw_.wx()) * tw_.wy());
     shear_tau_.reset(gn);
+    shear_tau_y_.reset(gn);
     const std::size_t taps =
         static_cast<std::size_t>(shear_stress::kernel_capacity(m_.shear.radius));
     shear_k_.reset(taps);

@@ -342,10 +342,11 @@ class CudaBackend final : public Backend {
   shear_stress::Kernel shear_kernel_;  // host taps of the current direction
   DeviceBuffer<double> shear_k_;       // ... on the device
   DeviceBuffer<int> shear_du_, shear_dv_;
-  DeviceBuffer<double> shear_c_;  // the correction's taps for the direction
+  DeviceBuffer<double> shear_c_;   // the correction's taps for the direction
+  DeviceBuffer<double> shear_cp_;  // ... and the lateral correction's
   DeviceBuffer<int> shear_cdu_, shear_cdv_;
-  DeviceBuffer<double> shear_slope_;  // e . grad h over the window
-  DeviceBuffer<float> shear_tau_;     // tau1 / tau0, [tcny + 2][tcnx + 2]
+  DeviceBuffer<double> shear_slope_, shear_slope_perp_;  // e . grad h, e_perp . grad h
+  DeviceBuffer<float> shear_tau_, shear_tau_y_;  // tau1 / tau0, tau_y / tau0, [tcny + 2][tcnx + 2]
   // reductions and downloads
   DeviceBuffer<total_t> row_sums_;  // 3 ny
   std::vector<total_t> host_rows_;

@@ -82,34 +82,40 @@ __global__ void gradient_kernel(wind_warping::TileWindow t, const double* smooth
   gy[k] = g.y;
 }
 
-// e . grad h at the window's inner cells: shear_stress::slope_at.
+// e . grad h and e_perp . grad h at the window's inner cells:
+// shear_stress::slope_at.
 __global__ void shear_slope_kernel(wind_warping::TileWindow t, const double* window, double ex,
-                                   double ey, double delta_m, double* slope) {
+                                   double ey, double delta_m, double* slope, double* perp) {
   const std::size_t k = flat_index();
   const int wx = t.wx(), wy = t.wy();
   if (k >= static_cast<std::size_t>(wx) * wy) return;
   const int j = static_cast<int>(k / wx), i = static_cast<int>(k % wx);
   const bool inner = i > 0 && i < wx - 1 && j > 0 && j < wy - 1;
   slope[k] = inner ? shear_stress::slope_at(window, wx, ex, ey, delta_m, i, j) : 0.0;
+  perp[k] = inner ? shear_stress::slope_at(window, wx, -ey, ex, delta_m, i, j) : 0.0;
 }
 
-// tau1 / tau0 at the tile's coarse cells -1 .. tcn: shear_stress::perturbation_at.
+// tau1 / tau0 and tau_y / tau0 at the tile's coarse cells -1 .. tcn:
+// shear_stress::perturbation_at and shear_stress::lateral_at.
 __global__ void shear_tau_kernel(wind_warping::TileWindow t, const double* slope,
-                                 const double* window, shear_stress::TapsView k,
-                                 shear_stress::TapsView c, shear_stress::Params p, float* tau) {
+                                 const double* perp, const double* window, shear_stress::TapsView k,
+                                 shear_stress::TapsView c, shear_stress::TapsView cp,
+                                 shear_stress::Params p, float* tau, float* tau_y) {
   const std::size_t q = flat_index();
   const int n = t.tcnx + 2;
   if (q >= static_cast<std::size_t>(t.tcny + 2) * n) return;
   const int j = static_cast<int>(q / n), i = static_cast<int>(q % n);
   tau[q] =
       shear_stress::perturbation_at(slope, window, t.wx(), k, c, p, t.hx - 1 + i, t.hy - 1 + j);
+  tau_y[q] = shear_stress::lateral_at(perp, window, t.wx(), k, cp, p, t.hx - 1 + i, t.hy - 1 + j);
 }
 
-// tau: tau1 / tau0 at the coarse cells (shear stress over relief), or null.
+// tau, tau_y: tau1 / tau0 and tau_y / tau0 at the coarse cells (shear stress
+// over relief), or null.
 __global__ void wind_kernel(TileGeom g, CoarseGrid c, int gnx, Vec2 a, float venturi_k,
                             wind_warping::Params wp, const float* h, const float* gx0,
                             const float* gy0, const float* gx1, const float* gy1, const float* tau,
-                            float* wind_x, float* wind_y) {
+                            const float* tau_y, float* wind_x, float* wind_y) {
   int x, y;
   if (!owned_cell(g, x, y)) return;
   const std::size_t i = g.at(x, y);
@@ -123,11 +129,14 @@ __global__ void wind_kernel(TileGeom g, CoarseGrid c, int gnx, Vec2 a, float ven
   const Vec2 gs{wind_warping::sample_at(gx1, gnx, ax, ay),
                 wind_warping::sample_at(gy1, gnx, ax, ay)};
   const Vec2 w = wind_warping::warp(v, gl, gs, wp);
-  // The surface wind carries u*: times sqrt(max(1 + tau1 / tau0, 0)).
-  const float s =
-      tau != nullptr ? shear_stress::speedup(wind_warping::sample_at(tau, gnx, ax, ay)) : 1.0f;
-  wind_x[i] = tau != nullptr ? s * w.x : w.x;
-  wind_y[i] = tau != nullptr ? s * w.y : w.y;
+  // The surface wind carries u*: turned to the stress's direction and scaled
+  // by the square root of its magnitude (shear_stress::surface_wind).
+  const Vec2 s = tau != nullptr
+                     ? shear_stress::surface_wind(wind_warping::sample_at(tau, gnx, ax, ay),
+                                                  wind_warping::sample_at(tau_y, gnx, ax, ay), w)
+                     : w;
+  wind_x[i] = s.x;
+  wind_y[i] = s.y;
 }
 
 // One batch of wind primitives added at every owned cell, from its global
@@ -186,11 +195,14 @@ bool CudaBackend::shear_field(Vec2 a) {
     const std::size_t nc = static_cast<std::size_t>(k.basis.n);
     if (shear_c_.size() != nc) {  // the basis is built with the first direction
       shear_c_.reset(nc);
+      shear_cp_.reset(nc);
       shear_cdu_.reset(nc);
       shear_cdv_.reset(nc);
     }
     ERG_CUDA_CHECK(
         cudaMemcpy(shear_c_.get(), k.c.data(), nc * sizeof(double), cudaMemcpyHostToDevice));
+    ERG_CUDA_CHECK(
+        cudaMemcpy(shear_cp_.get(), k.cp.data(), nc * sizeof(double), cudaMemcpyHostToDevice));
     ERG_CUDA_CHECK(
         cudaMemcpy(shear_cdu_.get(), k.basis.du.data(), nc * sizeof(int), cudaMemcpyHostToDevice));
     ERG_CUDA_CHECK(
@@ -200,11 +212,12 @@ bool CudaBackend::shear_field(Vec2 a) {
   const Launch ls = flat(static_cast<std::size_t>(t.wx()) * t.wy());
   const Launch lt = flat(static_cast<std::size_t>(t.tcny + 2) * (t.tcnx + 2));
   ERG_LAUNCH(shear_slope_kernel, ls.grid, ls.block, t, window_.get(), k.ex, k.ey,
-             m_.coarse.cx * m_.coarse.cell_m, shear_slope_.get());
+             m_.coarse.cx * m_.coarse.cell_m, shear_slope_.get(), shear_slope_perp_.get());
   const shear_stress::TapsView kd{shear_k_.get(), shear_du_.get(), shear_dv_.get(), k.taps};
   const shear_stress::TapsView cd{shear_c_.get(), shear_cdu_.get(), shear_cdv_.get(), k.basis.n};
-  ERG_LAUNCH(shear_tau_kernel, lt.grid, lt.block, t, shear_slope_.get(), window_.get(), kd, cd, p,
-             shear_tau_.get());
+  const shear_stress::TapsView cpd{shear_cp_.get(), shear_cdu_.get(), shear_cdv_.get(), k.basis.n};
+  ERG_LAUNCH(shear_tau_kernel, lt.grid, lt.block, t, shear_slope_.get(), shear_slope_perp_.get(),
+             window_.get(), kd, cd, cpd, p, shear_tau_.get(), shear_tau_y_.get());
   return true;
 }
 
@@ -232,11 +245,13 @@ void CudaBackend::wind(Vec2 a) {
   ERG_CUDA_CHECK(
       cudaMemcpy(window_.get(), window_host_.data(), window_.bytes(), cudaMemcpyHostToDevice));
   coarse_gradients();
-  const float* tau = shear_field(a) ? shear_tau_.get() : nullptr;
+  const bool sheared = shear_field(a);
+  const float* tau = sheared ? shear_tau_.get() : nullptr;
+  const float* tau_y = sheared ? shear_tau_y_.get() : nullptr;
 
   ERG_LAUNCH(wind_kernel, cells.grid, cells.block, g_, c, tw_.tcnx + 2, a, m_.venturi_k, m_.warp,
              d_.height_m.get(), grad_x_[0].get(), grad_y_[0].get(), grad_x_[1].get(),
-             grad_y_[1].get(), tau, d_.wind_x.get(), d_.wind_y.get());
+             grad_y_[1].get(), tau, tau_y, d_.wind_x.get(), d_.wind_y.get());
 }
 
 }  // namespace erg::gpu
