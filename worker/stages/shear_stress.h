@@ -21,8 +21,9 @@
 // of a hill it points away from the hill's axis, in the lee towards it: the
 // flow goes round the hill. The surface stress is the vector
 //   tau / tau0 = (1 + tau1 / tau0) e + (tau_y / tau0) e_perp,
-// the along-wind part clipped at 0 (no reversed flow: the lee, which the
-// shadow stops anyway); u* follows the square root of its magnitude and the
+// the along-wind part clipped at 0 (the linear theory's reversed flow, in
+// the lee, is not followed; docs/physical-units.md measures the choice);
+// u* follows the square root of its magnitude and the
 // surface wind turns to its direction (`surface_wind`).
 //
 // It is computed on the coarse window of the wind warping
@@ -123,9 +124,10 @@ inline int kernel_capacity(int r) {
 // window's part that is not of the theory's form (with the truncated
 // kernel's transforms Gx, Gy and the central differences' sx, sy, the
 // window's lateral response is 2 (ex Gx + ey Gy)(ex sy - ey sx), which
-// differs from the theory's in its ex^2 and ey^2 terms by Gy sx - Gx sy). Applied as sum_n w[n]
-// (h(p - o_n) - h(p)): exactly 0 on flat ground. Plain loops in one fixed order, and cosines from
-// one table, so every rank computes the same bits.
+// differs from the theory's in its ex^2 and ey^2 terms by Gy sx - Gx sy).
+// Applied as sum_n w[n] (h(p - o_n) - h(p)): exactly 0 on flat ground.
+// Plain loops in one fixed order, and cosines from one table, so every rank
+// computes the same bits.
 constexpr int kCorrectionRadius = 8;  // coarse cells (32 m on 4 m cells)
 constexpr int kDesignGrid = 128;      // coarse cells
 struct Basis {
@@ -165,7 +167,7 @@ inline Basis correction_basis(int radius, int cx, int cy) {
     if (k >= k2) return 0.0;
     return 0.5 * (1.0 + std::cos(kPi * (k - k1) / (k2 - k1)));
   };
-  // The five parts of the difference at every wavenumber (m, l) of the torus.
+  // The six parts of the difference at every wavenumber (m, l) of the torus.
   const size_t nn = static_cast<size_t>(N) * N;
   std::vector<double> cxx(nn), cxy(nn), cyy(nn), cxo(nn), cyo(nn), cz(nn);
   for (int l = 0; l < N; ++l)
