@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "sim/calibration.h"
@@ -186,6 +187,46 @@ TEST(PhysicalUnits, ShearStressOverASinusoidFollowsKroyEtAl) {
   EXPECT_EQ(shear_stress::speedup(0.0f), 1.0f);
 }
 
+// The coarse window (wx x wy, `h` cells of halo) of the block means of a
+// sinusoid h0 cos(k x) on fine cells, c fine cells to a coarse one, P coarse
+// cells a period: the wind stage's window over such a relief.
+std::vector<double> sinusoid_window(int P, int c, int h, int wx, int wy, double k, double h0) {
+  std::vector<double> block(static_cast<size_t>(P), 0.0);
+  for (int x = 0; x < c * P; ++x)
+    block[static_cast<size_t>(x / c)] += h0 * std::cos(k * (x + 0.5)) / c;
+  std::vector<double> window(static_cast<size_t>(wx) * wy);
+  for (int j = 0; j < wy; ++j)
+    for (int i = 0; i < wx; ++i)
+      window[static_cast<size_t>(j) * wx + i] = block[static_cast<size_t>((i - h + P) % P)];
+  return window;
+}
+
+// e . grad h (shear_stress::slope_at) over the window's inner cells.
+std::vector<double> window_slope(const std::vector<double>& window, int wx, int wy, double ex,
+                                 double ey, double delta_m) {
+  std::vector<double> slope(window.size(), 0.0);
+  for (int j = 1; j < wy - 1; ++j)
+    for (int i = 1; i < wx - 1; ++i)
+      slope[static_cast<size_t>(j) * wx + i] =
+          shear_stress::slope_at(window.data(), wx, ex, ey, delta_m, i, j);
+  return slope;
+}
+
+// A coarse stress row (cells -1 .. P) interpolated to the fine cells as the
+// wind stage does, projected on cos(k x) and -sin(k x): the parts in phase
+// with the relief and in quadrature with it.
+std::pair<double, double> fine_cell_phases(const std::vector<float>& tau, int c, int P, double k) {
+  double in_phase = 0, quadrature = 0;
+  for (int x = 0; x < c * P; ++x) {
+    const wind_warping::Axis ax = wind_warping::coarse_axis(x, c, 0);
+    const double t = wind_warping::lerp_columns(tau[static_cast<size_t>(ax.i0)],
+                                                tau[static_cast<size_t>(ax.i1)], ax);
+    in_phase += 2.0 * t * std::cos(k * (x + 0.5)) / (c * P);
+    quadrature -= 2.0 * t * std::sin(k * (x + 0.5)) / (c * P);
+  }
+  return {in_phase, quadrature};
+}
+
 // The same on the fine cells, at the wavelengths of a dune's faces: a
 // sinusoid h0 cos(k x) along x on 1 m cells, its exact 4 m block means (the
 // coarse window), the stage's tau1 / tau0 at the coarse cells, interpolated
@@ -212,29 +253,14 @@ TEST(PhysicalUnits, ShearStressOnTheFineCellsFollowsKroyEtAlAtDuneScales) {
     ASSERT_TRUE(kern.aim({static_cast<float>(ex), static_cast<float>(ey)}, p));
     for (double lambda : {16.0, 24.0, 32.0, 48.0, 64.0, 128.0}) {
       const double k = 2 * kPi / lambda, h0 = 1.0;
-      std::vector<double> block(P, 0.0);
-      for (int x = 0; x < c * P; ++x) block[x / c] += h0 * std::cos(k * (x + 0.5)) / c;
-      std::vector<double> window(static_cast<size_t>(wx) * wy), slope(window.size(), 0.0);
-      for (int j = 0; j < wy; ++j)
-        for (int i = 0; i < wx; ++i)
-          window[static_cast<size_t>(j) * wx + i] = block[static_cast<size_t>((i - h + P) % P)];
-      for (int j = 1; j < wy - 1; ++j)
-        for (int i = 1; i < wx - 1; ++i)
-          slope[static_cast<size_t>(j) * wx + i] =
-              shear_stress::slope_at(window.data(), wx, kern.ex, kern.ey, p.delta_m, i, j);
+      const std::vector<double> window = sinusoid_window(P, c, h, wx, wy, k, h0);
+      const std::vector<double> slope = window_slope(window, wx, wy, kern.ex, kern.ey, p.delta_m);
       std::vector<float> tau(P + 2);  // coarse cells -1 .. P
       for (int i = 0; i < P + 2; ++i)
         tau[static_cast<size_t>(i)] =
             shear_stress::perturbation_at(slope.data(), window.data(), wx, kern.kernel_taps(),
                                           kern.correction_taps(), p, h - 1 + i, h);
-      double in_phase = 0, quadrature = 0;
-      for (int x = 0; x < c * P; ++x) {
-        const wind_warping::Axis ax = wind_warping::coarse_axis(x, c, 0);
-        const double t = wind_warping::lerp_columns(tau[static_cast<size_t>(ax.i0)],
-                                                    tau[static_cast<size_t>(ax.i1)], ax);
-        in_phase += 2.0 * t * std::cos(k * (x + 0.5)) / (c * P);
-        quadrature -= 2.0 * t * std::sin(k * (x + 0.5)) / (c * P);
-      }
+      const auto [in_phase, quadrature] = fine_cell_phases(tau, c, P, k);
       const double kterm = in_phase / (p.a * h0 * k * ex * ex);
       const double bterm = quadrature / (p.a * p.b * h0 * k * ex);
       const double tol = lambda <= 32 ? 0.03 : 0.06;
@@ -278,29 +304,14 @@ TEST(PhysicalUnits, LateralShearStressFollowsKroyEtAlAndDeflectsTheWindRoundAHil
     const int wx = P + 2 * h, wy = 2 * h + 1;
     for (double lambda : {16.0, 24.0, 32.0, 48.0, 64.0, 128.0}) {
       const double k = 2 * kPi / lambda, h0 = 1.0;
-      std::vector<double> block(P, 0.0);
-      for (int x = 0; x < c * P; ++x) block[x / c] += h0 * std::cos(k * (x + 0.5)) / c;
-      std::vector<double> window(static_cast<size_t>(wx) * wy), perp(window.size(), 0.0);
-      for (int j = 0; j < wy; ++j)
-        for (int i = 0; i < wx; ++i)
-          window[static_cast<size_t>(j) * wx + i] = block[static_cast<size_t>((i - h + P) % P)];
-      for (int j = 1; j < wy - 1; ++j)
-        for (int i = 1; i < wx - 1; ++i)
-          perp[static_cast<size_t>(j) * wx + i] =
-              shear_stress::slope_at(window.data(), wx, -kern.ey, kern.ex, p.delta_m, i, j);
+      const std::vector<double> window = sinusoid_window(P, c, h, wx, wy, k, h0);
+      const std::vector<double> perp = window_slope(window, wx, wy, -kern.ey, kern.ex, p.delta_m);
       std::vector<float> tau(P + 2);
       for (int i = 0; i < P + 2; ++i)
         tau[static_cast<size_t>(i)] =
             shear_stress::lateral_at(perp.data(), window.data(), wx, kern.kernel_taps(),
                                      kern.lateral_taps(), p, h - 1 + i, h);
-      double in_phase = 0, quadrature = 0;
-      for (int x = 0; x < c * P; ++x) {
-        const wind_warping::Axis ax = wind_warping::coarse_axis(x, c, 0);
-        const double t = wind_warping::lerp_columns(tau[static_cast<size_t>(ax.i0)],
-                                                    tau[static_cast<size_t>(ax.i1)], ax);
-        in_phase += 2.0 * t * std::cos(k * (x + 0.5)) / (c * P);
-        quadrature -= 2.0 * t * std::sin(k * (x + 0.5)) / (c * P);
-      }
+      const auto [in_phase, quadrature] = fine_cell_phases(tau, c, P, k);
       const double theory = -p.a * h0 * k * ex * ey;
       const double tol = lambda <= 32 ? 0.03 : 0.06;
       EXPECT_NEAR(in_phase / theory, 1.0, tol) << lambda << " m, wind at " << theta << " deg";

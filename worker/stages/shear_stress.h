@@ -293,12 +293,14 @@ ERG_HD double slope_at(const double* window, int wx, double ex, double ey, doubl
   return ex * gx + ey * gy;
 }
 
-// tau1 / tau0 at window cell (i, j): A [ (sum_n k[n] (D(p - o_n) - D(p +
-// o_n)) + B D(p)) + sum_n c[n] (h(p - o_n) - h(p)) ], `slope` holding D h
-// and `height` the coarse heights over the window (`wx` wide), each sum in
-// its taps' order.
-ERG_HD float perturbation_at(const double* slope, const double* height, int wx, TapsView k,
-                             TapsView c, Params p, int i, int j) {
+// The two sums of the stress at window cell (i, j), each in its taps'
+// order: s = sum_n k[n] (D(p - o_n) - D(p + o_n)) over `slope` (D), and
+// t = sum_n c[n] (h(p - o_n) - h(p)) over `height` (`wx` wide).
+struct Sums {
+  double s, t, d0;  // d0: D at the cell itself
+};
+ERG_HD Sums sums_at(const double* slope, const double* height, int wx, TapsView k, TapsView c,
+                    int i, int j) {
   const long at = static_cast<long>(j) * wx + i;
   const double* d = slope + at;
   double s = 0.0;
@@ -312,29 +314,27 @@ ERG_HD float perturbation_at(const double* slope, const double* height, int wx, 
     const long o = static_cast<long>(c.dv[n]) * wx + c.du[n];
     t += c.w[n] * (h[-o] - h[0]);
   }
-  return static_cast<float>(static_cast<double>(p.a) * ((s + static_cast<double>(p.b) * d[0]) + t));
+  return {s, t, d[0]};
+}
+
+// tau1 / tau0 at window cell (i, j): A [ (sum_n k[n] (D(p - o_n) - D(p +
+// o_n)) + B D(p)) + sum_n c[n] (h(p - o_n) - h(p)) ], `slope` holding D h
+// and `height` the coarse heights over the window (`wx` wide).
+ERG_HD float perturbation_at(const double* slope, const double* height, int wx, TapsView k,
+                             TapsView c, Params p, int i, int j) {
+  const Sums u = sums_at(slope, height, wx, k, c, i, j);
+  return static_cast<float>(static_cast<double>(p.a) *
+                            ((u.s + static_cast<double>(p.b) * u.d0) + u.t));
 }
 
 // tau_y / tau0 at window cell (i, j): A [ sum_n k[n] (P(p - o_n) - P(p +
 // o_n)) + sum_n c[n] (h(p - o_n) - h(p)) ], `slope` holding D_perp h (the
 // slope across the wind: slope_at with the direction (-ey, ex)) and `c` the
-// lateral correction's taps, each sum in its taps' order.
+// lateral correction's taps.
 ERG_HD float lateral_at(const double* slope, const double* height, int wx, TapsView k, TapsView c,
                         Params p, int i, int j) {
-  const long at = static_cast<long>(j) * wx + i;
-  const double* d = slope + at;
-  double s = 0.0;
-  for (int n = 0; n < k.n; ++n) {
-    const long o = static_cast<long>(k.dv[n]) * wx + k.du[n];
-    s += k.w[n] * (d[-o] - d[o]);
-  }
-  const double* h = height + at;
-  double t = 0.0;
-  for (int n = 0; n < c.n; ++n) {
-    const long o = static_cast<long>(c.dv[n]) * wx + c.du[n];
-    t += c.w[n] * (h[-o] - h[0]);
-  }
-  return static_cast<float>(static_cast<double>(p.a) * (s + t));
+  const Sums u = sums_at(slope, height, wx, k, c, i, j);
+  return static_cast<float>(static_cast<double>(p.a) * (u.s + u.t));
 }
 
 // The surface wind w under the stress vector tau / tau0 = (1 + tau1) e +
