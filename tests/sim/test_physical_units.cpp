@@ -146,47 +146,6 @@ TEST(PhysicalUnits, BelowThresholdNothingMoves) {
   }
 }
 
-// The shear stress over relief (stages/shear_stress.h) against its Fourier
-// form tau1_hat / tau0 = A (k_x^2 / |k| + i B k_x) h_hat (Kroy, Sauermann &
-// Herrmann 2002): over h = h0 sin(k e.x + phi), with e the wind's direction,
-// tau1 / tau0 = A k h0 (sin phi + B cos phi). A 128 m wavelength on 4 m
-// coarse cells, the wind at 30 degrees, the kernel truncated at 100 m: the
-// truncated lattice sum is within 2% of A k h0 (central differences: (k
-// delta)^2 / 6 = 0.6%, which the correction restores; the correction also
-// undoes a block mean and an interpolation that this test does not apply,
-// 1% at 128 m; the truncation of the 1 / r^2 tail the rest).
-TEST(PhysicalUnits, ShearStressOverASinusoidFollowsKroyEtAl) {
-  const double delta = 4, lambda = 128, k = 2 * kPi / lambda, h0 = 1.5;
-  const double ex = std::cos(30 * kPi / 180), ey = std::sin(30 * kPi / 180);
-  shear_stress::Params p;
-  p.on = true;
-  p.a = 3;
-  p.b = 1;
-  p.radius = shear_stress::kernel_radius(100, delta);
-  ASSERT_EQ(p.radius, 25);
-  shear_stress::Kernel kern;
-  p.delta_m = delta;
-  ASSERT_TRUE(kern.aim({static_cast<float>(ex), static_cast<float>(ey)}, p));
-  const int h = p.radius + 2, n = 2 * h + 1;
-  for (double phi : {0.0, 1.0, kPi / 2, 2.5}) {
-    std::vector<double> window(static_cast<size_t>(n) * n), slope(window.size(), 0.0);
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i)
-        window[static_cast<size_t>(j) * n + i] =
-            h0 * std::sin(k * (ex * (i - h) + ey * (j - h)) * delta + phi);
-    for (int j = 1; j < n - 1; ++j)
-      for (int i = 1; i < n - 1; ++i)
-        slope[static_cast<size_t>(j) * n + i] =
-            shear_stress::slope_at(window.data(), n, kern.ex, kern.ey, delta, i, j);
-    const float tau = shear_stress::perturbation_at(
-        slope.data(), window.data(), n, kern.kernel_taps(), kern.correction_taps(), p, h, h);
-    const double expect = p.a * k * h0 * (std::sin(phi) + p.b * std::cos(phi));
-    EXPECT_NEAR(tau, expect, 0.02 * p.a * k * h0) << "phase " << phi;
-  }
-  // Flat ground: no perturbation, exactly.
-  EXPECT_EQ(shear_stress::speedup(0.0f), 1.0f);
-}
-
 // The coarse window (wx x wy, `h` cells of halo) of the block means of a
 // sinusoid h0 cos(k x) on fine cells, c fine cells to a coarse one, P coarse
 // cells a period: the wind stage's window over such a relief.
@@ -225,6 +184,46 @@ std::pair<double, double> fine_cell_phases(const std::vector<float>& tau, int c,
     quadrature -= 2.0 * t * std::sin(k * (x + 0.5)) / (c * P);
   }
   return {in_phase, quadrature};
+}
+
+// The shear stress over relief (stages/shear_stress.h) against its Fourier
+// form tau1_hat / tau0 = A (k_x^2 / |k| + i B k_x) h_hat (Kroy, Sauermann &
+// Herrmann 2002): over h = h0 sin(k e.x + phi), with e the wind's direction,
+// tau1 / tau0 = A k h0 (sin phi + B cos phi). A 128 m wavelength on 4 m
+// coarse cells, the wind at 30 degrees, the kernel truncated at 100 m: the
+// truncated lattice sum is within 2% of A k h0 (central differences: (k
+// delta)^2 / 6 = 0.6%, which the correction restores; the correction also
+// undoes a block mean and an interpolation that this test does not apply,
+// 1% at 128 m; the truncation of the 1 / r^2 tail the rest).
+TEST(PhysicalUnits, ShearStressOverASinusoidFollowsKroyEtAl) {
+  const double delta = 4, lambda = 128, k = 2 * kPi / lambda, h0 = 1.5;
+  const double ex = std::cos(30 * kPi / 180), ey = std::sin(30 * kPi / 180);
+  shear_stress::Params p;
+  p.on = true;
+  p.a = 3;
+  p.b = 1;
+  p.radius = shear_stress::kernel_radius(100, delta);
+  ASSERT_EQ(p.radius, 25);
+  shear_stress::Kernel kern;
+  p.delta_m = delta;
+  ASSERT_TRUE(kern.aim({static_cast<float>(ex), static_cast<float>(ey)}, p));
+  const int h = p.radius + 2, n = 2 * h + 1;
+  for (double phi : {0.0, 1.0, kPi / 2, 2.5}) {
+    std::vector<double> window(static_cast<size_t>(n) * n);
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        window[static_cast<size_t>(j) * n + i] =
+            h0 * std::sin(k * (ex * (i - h) + ey * (j - h)) * delta + phi);
+    const std::vector<double> slope = window_slope(window, n, n, kern.ex, kern.ey, delta);
+    const float tau = shear_stress::perturbation_at(
+        slope.data(), window.data(), n, kern.kernel_taps(), kern.correction_taps(), p, h, h);
+    const double expect = p.a * k * h0 * (std::sin(phi) + p.b * std::cos(phi));
+    EXPECT_NEAR(tau, expect, 0.02 * p.a * k * h0) << "phase " << phi;
+  }
+  // Flat ground: no perturbation, exactly.
+  const Vec2 w{3.5f, -1.25f};
+  EXPECT_EQ(shear_stress::surface_wind(0.0f, 0.0f, w).x, w.x);
+  EXPECT_EQ(shear_stress::surface_wind(0.0f, 0.0f, w).y, w.y);
 }
 
 // The same on the fine cells, at the wavelengths of a dune's faces: a

@@ -342,20 +342,13 @@ ERG_HD float lateral_at(const double* slope, const double* height, int wx, TapsV
 // by the stress's angle to e and scaled by the square root of its magnitude
 // m (u* ~ sqrt(tau)); the along-wind part clipped at 0. With v = max(1 +
 // tau1, 0): w' = (v w + tau_y w_perp) / sqrt(m), m = |(v, tau_y)|, w_perp =
-// w turned +90 deg; 0 where m is 0. Flat ground (0, 0) gives w back within
-// a rounding of the float square roots (used only with the stress on).
+// w turned +90 deg; 0 where m is 0. Flat ground (0, 0) gives w back exactly
+// (v = m = 1).
 ERG_HD Vec2 surface_wind(float tau1, float tau_y, Vec2 w) {
   const float v = max_of(1.0f + tau1, 0.0f);
   const float m = sqrtf(v * v + tau_y * tau_y);
   const float g = m > 0.0f ? 1.0f / sqrtf(m) : 0.0f;
   return {g * (v * w.x - tau_y * w.y), g * (v * w.y + tau_y * w.x)};
-}
-
-// The speed-up of u* (and of the surface wind, which carries it) for a
-// stress perturbation: sqrt(max(1 + tau1 / tau0, 0)); 1 on flat ground,
-// exactly.
-ERG_HD float speedup(float tau1) {
-  return sqrtf(max_of(1.0f + tau1, 0.0f));
 }
 
 }  // namespace erg::shear_stress
