@@ -83,7 +83,8 @@ const CommandUsage kUsage[] = {
      "                       a rose); prints its rose and DP/RDP/RDD, draws the sand rose\n"},
     {"validate",
      "  erg validate --out DIR [--quick] [--threads T] [--reuse]\n"
-     "                       run the geomorphology scenes, write DIR/report.md (laws, plots)\n"},
+     "                       run the geomorphology scenes, write DIR/report.md (laws, plots);\n"
+     "                       --reuse keeps DIR's runs and resumes interrupted ones\n"},
     {"submit",
      "  erg submit JOB.json [--watch] [--key IDEMPOTENCY_KEY] [--steps N] [--snapshot-every K]\n"
      "             [--checkpoint-every C] [--ranks P] [--threads T]\n"

@@ -11,6 +11,7 @@ import argparse
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -42,26 +43,77 @@ def run_complete(out, job):
     return bool(snaps) and snaps[-1].name == f"step_{job['run']['steps']:08d}.h5"
 
 
-def run_scene(worker, job_path, out, threads, reuse, index, count):
-    job = json.loads(job_path.read_text())
-    if out.exists():
-        if reuse and run_complete(out, job):
-            log(f"[{index}/{count}] {job['name']}: reusing {out}")
-            tf = Path(str(out) + ".time.json")
-            return time.time(), (json.loads(tf.read_text())["seconds"] if tf.exists() else None)
-        if reuse:
-            raise SystemExit(f"erg validate: {out} holds an incomplete run; remove it")
-        raise SystemExit(f"erg validate: {out} exists; choose a new --out or pass --reuse")
+def checkpoint_every(job):
+    """Steps between the checkpoints validate asks of each scene: ten a run,
+    so that an interrupted suite (the full one runs for hours) resumes with
+    --reuse losing at most a tenth of a scene. A checkpoint is output only:
+    the run resumed from it gives the same bits as one never stopped."""
+    return max(1, int(job["run"]["steps"]) // 10)
+
+
+def scene_cost(job):
+    """Cells times steps: the order the scenes are run in, cheapest first, so
+    that an interrupted suite has finished as many scenes as it could."""
     d = job["domain"]
+    return int(d["nx"]) * int(d["ny"]) * int(job["run"]["steps"])
+
+
+def _time_file(out):
+    return Path(str(out) + ".time.json")
+
+
+def _seconds_so_far(out):
+    tf = _time_file(out)
+    if not tf.exists():
+        return 0.0
+    try:
+        return float(json.loads(tf.read_text())["seconds"])
+    except (ValueError, KeyError, TypeError):
+        return 0.0
+
+
+def _write_seconds(out, seconds, complete):
+    tmp = Path(str(_time_file(out)) + ".tmp")
+    tmp.write_text(json.dumps({"seconds": round(seconds, 1), "complete": complete}) + "\n")
+    os.replace(tmp, _time_file(out))
+
+
+def run_scene(worker, job_path, out, threads, reuse, index, count):
+    """Runs one scene into OUT (erg-worker), or with reuse takes the run
+    already there: a complete one as it is, an interrupted one resumed from
+    its newest intact checkpoint (the worker's --resume), one that never
+    reached a checkpoint started again. Returns the simulation wall time in
+    seconds, summed over the invocations that ran it (None if unknown)."""
+    job = json.loads(job_path.read_text())
+    d = job["domain"]
+    before = 0.0
+    cmd = [worker, str(job_path), "--out", str(out)]
+    if out.exists():
+        if not reuse:
+            raise SystemExit(f"erg validate: {out} exists; choose a new --out or pass --reuse")
+        if run_complete(out, job):
+            log(f"[{index}/{count}] {job['name']}: reusing {out}")
+            tf = _time_file(out)
+            return json.loads(tf.read_text())["seconds"] if tf.exists() else None
+        if any((out / "checkpoints").glob("step_*.h5")):
+            before = _seconds_so_far(out)
+            log(f"[{index}/{count}] {job['name']}: resuming the interrupted run in {out} "
+                "from its newest intact checkpoint")
+            cmd = [worker, "--resume", str(out)]
+        else:
+            log(f"[{index}/{count}] {job['name']}: {out} holds a run interrupted before its "
+                "first checkpoint; starting it again")
+            shutil.rmtree(out)
+            _time_file(out).unlink(missing_ok=True)
     log(f"[{index}/{count}] {job['name']}: {d['nx']} x {d['ny']} cells of {d['cell_size_m']} m, "
         f"{job['run']['steps']} steps")
-    cmd = [worker, str(job_path), "--out", str(out), "--progress-fd", "1"]
+    cmd += ["--checkpoint-every", str(checkpoint_every(job)), "--progress-fd", "1"]
     if threads:
         cmd += ["--threads", str(threads)]
     env = dict(os.environ)
     env.setdefault("OMP_WAIT_POLICY", "PASSIVE")
     t0 = time.time()
-    with open(str(out) + ".log", "w") as errlog:
+    with open(str(out) + ".log", "a") as errlog:
         p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=errlog, text=True, env=env)
         last = -1
         for line in p.stdout:
@@ -76,16 +128,18 @@ def run_scene(worker, job_path, out, threads, reuse, index, count):
                 decile = (10 * step) // max(steps, 1)
                 if decile != last:
                     last = decile
+                    # The time so far, kept for a resume after an interruption.
+                    _write_seconds(out, before + time.time() - t0, False)
                     log(f"[{index}/{count}] {job['name']}: step {step}/{steps} "
-                        f"({time.time() - t0:.0f} s)")
+                        f"({before + time.time() - t0:.0f} s)")
         rc = p.wait()
     if rc != 0:
         tail = Path(str(out) + ".log").read_text()[-2000:]
         raise SystemExit(f"erg validate: erg-worker failed on {job_path} (exit {rc}):\n{tail}")
-    seconds = time.time() - t0
-    Path(str(out) + ".time.json").write_text(json.dumps({"seconds": round(seconds, 1)}) + "\n")
+    seconds = before + time.time() - t0
+    _write_seconds(out, seconds, True)
     log(f"[{index}/{count}] {job['name']}: done in {seconds:.0f} s")
-    return t0, seconds
+    return seconds
 
 
 def snapshots(run_dir):
@@ -1010,7 +1064,8 @@ def main():
     ap.add_argument("--worker", default="erg-worker")
     ap.add_argument("--erg", default="erg", help="the erg binary (erg calibrate)")
     ap.add_argument("--threads", type=int, default=0)
-    ap.add_argument("--reuse", action="store_true", help="reuse complete runs already in OUT/runs")
+    ap.add_argument("--reuse", action="store_true", help="reuse the runs already in OUT/runs: complete ones as they are, "
+                    "interrupted ones resumed from their newest checkpoint")
     ap.add_argument("--scenes", default=None, help="folder of scene jobs (default: scenes/full or scenes/quick)")
     a = ap.parse_args()
     global ERG
@@ -1024,12 +1079,14 @@ def main():
     jobs, dirs, timings = {}, {}, {}
     names = list(SCENES) + [n for n in OPTIONAL + ISOTROPY if (scene_dir / f"{n}.json").exists()]
     names += sorted(p.stem for p in scene_dir.glob("orientation_*.json"))
-    for i, name in enumerate(names, start=1):
+    for name in names:
         jp = scene_dir / f"{name}.json"
         jobs[name] = json.loads(jp.read_text())
         _SCENE_PATHS[jobs[name]["name"]] = jp
         dirs[name] = out / "runs" / jobs[name]["name"]
-        _, timings[name] = run_scene(a.worker, jp, dirs[name], a.threads, a.reuse, i, len(names))
+    for i, name in enumerate(sorted(names, key=lambda n: scene_cost(jobs[n])), start=1):
+        timings[name] = run_scene(a.worker, scene_dir / f"{name}.json", dirs[name], a.threads,
+                                  a.reuse, i, len(names))
     log("measuring")
     rep = Report(out)
     rows, bsnaps, repose = barchan_laws(rep, T, dirs["barchans"], jobs["barchans"])
