@@ -352,24 +352,46 @@ TEST(Tiling, WindWarpingGivesTheSameBitsOnOneToSixteenRanks) {
 // inside the coarse halo, wider than the torus (32 x 24 coarse cells): 1, 2
 // and 6 ranks give the same bits, with the wind at 25 degrees (a kernel with
 // no symmetry of the grid).
-TEST(Tiling, ShearStressGivesTheSameBitsOnOneToSixRanks) {
+// A job run on 1 rank (2 threads) and on 2 and 6 ranks (1 thread): the same
+// snapshots at steps 3 and 6.
+void expect_same_bits_on_one_to_six_ranks(const std::string& job) {
   TempDir t("erg_tiling");
-  write(t / "sheared.json", R"({"domain": {"nx": 128, "ny": 96, "cell_size_m": 1.0},
+  write(t / "job.json", job);
+  const std::string one = t / "ranks1";
+  Result r = run(worker_on(1, (t / "job.json") + " --out " + one + " --quiet --threads 2"));
+  ASSERT_EQ(r.code, 0) << r.output;
+  for (int ranks : {2, 6}) {
+    const std::string dir = t / ("ranks" + std::to_string(ranks));
+    r = run(worker_on(ranks, (t / "job.json") + " --out " + dir + " --quiet --threads 1"));
+    ASSERT_EQ(r.code, 0) << ranks << " ranks: " << r.output;
+    expect_same_runs(one, dir, {"00000003", "00000006"}, std::to_string(ranks) + " ranks");
+  }
+}
+
+TEST(Tiling, ShearStressGivesTheSameBitsOnOneToSixRanks) {
+  expect_same_bits_on_one_to_six_ranks(R"({"domain": {"nx": 128, "ny": 96, "cell_size_m": 1.0},
  "layers": {"bedrock": {"fbm": {"amplitude": 4, "wavelength_m": 64, "octaves": 3}},
             "sand": {"patches": {"coverage": 0.5, "radius_m": 10, "height": 3, "falloff_m": 5}}},
  "wind": {"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.31, "direction_deg": 25}},
  "transport": "STOCHASTIC", "model": {"slab_m": 0.05, "avalanche_iterations": 12},
  "physics": {"shear_stress_a": 3, "shear_stress_b": 1},
  "run": {"steps": 6, "snapshot_every": 3}})");
-  const std::string one = t / "ranks1";
-  Result r = run(worker_on(1, (t / "sheared.json") + " --out " + one + " --quiet --threads 2"));
-  ASSERT_EQ(r.code, 0) << r.output;
-  for (int ranks : {2, 6}) {
-    const std::string dir = t / ("ranks" + std::to_string(ranks));
-    r = run(worker_on(ranks, (t / "sheared.json") + " --out " + dir + " --quiet --threads 1"));
-    ASSERT_EQ(r.code, 0) << ranks << " ranks: " << r.output;
-    expect_same_runs(one, dir, {"00000003", "00000006"}, std::to_string(ranks) + " ranks");
-  }
+}
+
+// The shadow's cubic samples read two cells past the march (its halo) and
+// the isotropic repose has each receiver recompute its donors' tangents from
+// their 3 x 3 heights (two cells from the receiver, at the edge of each
+// avalanching iteration's grown tile): steep sand patches (above repose, so
+// that every step avalanches in both rounds of its 12 iterations, 4 and 8)
+// under a wind at 25 degrees give the same bits on 1, 2 and 6 ranks.
+TEST(Tiling, CubicShadowAndIsotropicReposeGiveTheSameBitsOnOneToSixRanks) {
+  expect_same_bits_on_one_to_six_ranks(R"({"domain": {"nx": 128, "ny": 96, "cell_size_m": 1.0},
+ "layers": {"sand": {"patches": {"coverage": 0.5, "radius_m": 8, "height": 6, "falloff_m": 2}}},
+ "wind": {"constant": {"speed_mps": 5, "direction_deg": 25}},
+ "transport": "STOCHASTIC",
+ "model": {"slab_m": 0.2, "shadow_sampling": "CUBIC", "repose": "ISOTROPIC",
+           "avalanche_iterations": 12},
+ "run": {"steps": 6, "snapshot_every": 3}})");
 }
 
 // halo_messages_per_step of the worker's done event (the most any rank sent).

@@ -3,7 +3,8 @@
 // - on 1 and 2 threads (no stage depends on how its rows are shared out);
 // - with and without its avalanching fast path (the active segments against
 //   visiting every cell, RunOptions::avalanche_everywhere),
-// in both transport modes, on a scene where every stage has work
+// in both transport modes (and with the isotropic options), on a scene where
+// every stage has work
 // (tests/common/stage_scene.h). The comparison is the one the CUDA backend
 // is held to against the CPU (tests/gpu/test_cuda_stages.cpp), here with no
 // difference allowed anywhere.
@@ -20,15 +21,31 @@ namespace {
 
 class StageAgreement : public ::testing::TestWithParam<std::string> {};
 
+// "EXPECTED", "STOCHASTIC", or either with "+isotropic": the shadow's cubic
+// samples and the isotropic repose (model.shadow_sampling, model.repose),
+// whose stencils read two cells out.
+erg::v1::JobSpec scene(const std::string& param) {
+  const std::string suffix = "+isotropic";
+  const bool iso = param.size() > suffix.size() &&
+                   param.compare(param.size() - suffix.size(), suffix.size(), suffix) == 0;
+  auto spec = test::spec_from(
+      test_support::stage_scene(iso ? param.substr(0, param.size() - suffix.size()) : param));
+  if (iso) {
+    spec.mutable_model()->set_shadow_sampling(erg::v1::ModelParameters::CUBIC);
+    spec.mutable_model()->set_repose(erg::v1::ModelParameters::ISOTROPIC);
+  }
+  return spec;
+}
+
 TEST_P(StageAgreement, OneAndTwoThreadsAgreeAfterEveryStage) {
-  const auto spec = test::spec_from(test_support::stage_scene(GetParam()));
+  const auto spec = scene(GetParam());
   const auto a =
       test_support::expect_stages_agree(spec, test::cpu_threads(1), test::cpu_threads(2), 4);
   EXPECT_GT(a.avalanche_iterations, 0);
 }
 
 TEST_P(StageAgreement, AvalanchingFastPathAgreesWithVisitingEveryCell) {
-  const auto spec = test::spec_from(test_support::stage_scene(GetParam()));
+  const auto spec = scene(GetParam());
   RunOptions everywhere = test::cpu_threads(2);
   everywhere.avalanche_everywhere = true;
   const auto a = test_support::expect_stages_agree(spec, everywhere, test::cpu_threads(2), 4);
@@ -59,7 +76,14 @@ TEST(StageAgreementHarness, NamesTheFirstStageAndFieldThatDiffer) {
   EXPECT_GT(bounded.stages_compared, 2) << later;
 }
 
-INSTANTIATE_TEST_SUITE_P(Transport, StageAgreement, ::testing::Values("EXPECTED", "STOCHASTIC"));
+INSTANTIATE_TEST_SUITE_P(Transport, StageAgreement,
+                         ::testing::Values("EXPECTED", "STOCHASTIC", "STOCHASTIC+isotropic"),
+                         [](const auto& info) {
+                           std::string n = info.param;
+                           for (char& c : n)
+                             if (c == '+') c = '_';
+                           return n;
+                         });
 
 }  // namespace
 }  // namespace erg

@@ -664,6 +664,11 @@ void apply_defaults(JobSpec& spec) {
     spec.mutable_physics();
   defaults_rec(spec);
   if (spec.transport() == JobSpec::TRANSPORT_UNSPECIFIED) spec.set_transport(JobSpec::EXPECTED);
+  auto* m = spec.mutable_model();
+  if (m->shadow_sampling() == erg::v1::ModelParameters::SHADOW_SAMPLING_UNSPECIFIED)
+    m->set_shadow_sampling(erg::v1::ModelParameters::BILINEAR);
+  if (m->repose() == erg::v1::ModelParameters::REPOSE_UNSPECIFIED)
+    m->set_repose(erg::v1::ModelParameters::NEIGHBOUR_PAIRS);
 }
 
 namespace {

@@ -45,6 +45,7 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
   md.shadow.tan_min = static_cast<float>(std::tan(m.shadow_angle_min_deg() * kDeg));
   md.shadow.tan_max = static_cast<float>(std::tan(m.shadow_angle_max_deg() * kDeg));
   md.shadow.steps = std::min(md.shadow.steps, wind_shadow::kMaxShadowSteps);  // validated: <= 128
+  md.shadow.cubic = m.shadow_sampling() == erg::v1::ModelParameters::CUBIC;
   wind_shadow::finish(md.shadow);
 
   auto& e = md.echo;
@@ -102,6 +103,7 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
   md.tan_l_sand = static_cast<float>(std::tan(m.repose_deg() * kDeg) * l);
   md.tan_l_vegetated = static_cast<float>(std::tan(m.repose_vegetated_deg() * kDeg) * l);
   md.tan_l_bedrock = static_cast<float>(std::tan(m.bedrock_repose_deg() * kDeg) * l);
+  md.repose_isotropic = m.repose() == erg::v1::ModelParameters::ISOTROPIC;
   md.avalanche_iterations = static_cast<int>(m.avalanche_iterations());
   md.kc = static_cast<float>(m.avalanche_kc());
   md.kc_damped = static_cast<float>(m.avalanche_kc_damped());

@@ -78,6 +78,9 @@ struct Model {
   float reptation_k = 0;
   // tan(repose) * l: metres of height difference allowed per cell of distance.
   float tan_l_sand = 0, tan_l_vegetated = 0, tan_l_bedrock = 0;
+  // model.repose ISOTROPIC: each donor's tangent is scaled for the direction
+  // it faces (avalanching::facing); NEIGHBOUR_PAIRS: [N24] eq. 9 as written.
+  bool repose_isotropic = false;
   int avalanche_iterations = 0;
   float kc = 1, kc_damped = 0.5f;
   int bedrock_iterations = 0;

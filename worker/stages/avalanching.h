@@ -16,6 +16,22 @@
 //
 // Heights are float metres derived from the exact integers; tan_l(i) is
 // tan(theta_r(i)) * l, with theta_r from the cell's vegetation.
+//
+// Isotropic repose (model.repose ISOTROPIC; NEIGHBOUR_PAIRS, [N24]'s, is the
+// default: see job.proto for why). Comparing each
+// neighbour pair with tan(theta_r) l |i - j| holds a plane of slope g facing
+// phi where g max(cos phi, cos(phi - 45 deg)) <= tan(theta_r): the steepest
+// pair of a plane is the lattice direction nearest its fall line, so slopes
+// stand at 33 deg facing an axis or a diagonal and up to 35.1 deg facing
+// 22.5 deg (docs/dune-forms.md, "Isotropy"). The angle of repose is a bound
+// on the surface's own slope, |grad h| <= tan(theta_r) (Bagnold 1941 ch. 13;
+// the continuum avalanche of Bouchaud et al. 1994), so each donor's tangent
+// is scaled by that same factor, facing(), for its own fall line; then
+// a plane of slope g exceeds repose in some pair exactly when g > tan
+// theta_r, whatever its direction. The fall line is the Sobel gradient of
+// the donor's 3 x 3 heights (the 8 neighbours eq. 9 reads already), so a
+// receiver recomputes its donors' tangents from the same heights and both
+// sides still agree to the unit.
 #pragma once
 
 #include "core/grid.h"
@@ -27,6 +43,24 @@ namespace erg::avalanching {
 // Eq. 9 with the distance factor folded in: metres above repose.
 ERG_HD float excess(float h_donor, float h_receiver, float tan_l_donor, float dist_cells) {
   return max_of(h_donor - h_receiver - tan_l_donor * dist_cells, 0.0f);
+}
+
+// max(cos phi, cos(phi - 45 deg)) for the fall line phi of the 3 x 3 heights
+// around a cell (kNeighbours order: E, NE, N, NW, W, SW, S, SE), from the
+// Sobel gradient (gx, gy): with a = |gx|, b = |gy|, cos phi = max(a, b) / |g|
+// and cos(phi - 45 deg) = (a + b) / (sqrt 2 |g|). 1 on flat ground. In
+// [cos 22.5 deg, 1].
+ERG_HD float facing(const float hn[8]) {
+  const float gx = (2.0f * (hn[0] - hn[4]) + (hn[1] - hn[3])) + (hn[7] - hn[5]);
+  const float gy = (2.0f * (hn[2] - hn[6]) + (hn[1] - hn[7])) + (hn[3] - hn[5]);
+  const float a = fabsf(gx), b = fabsf(gy);
+  const float g = sqrtf(a * a + b * b);
+  return g > 0.0f ? max_of(max_of(a, b), (a + b) * 0.707106781f) / g : 1.0f;
+}
+
+// A donor's tangent: tan_l, scaled by facing() when the repose is isotropic.
+ERG_HD float donor_tangent(float tan_l, const float hn[8], bool isotropic) {
+  return isotropic ? tan_l * facing(hn) : tan_l;
 }
 
 // The integer units a donor with fraction f sends for an excess b (metres).

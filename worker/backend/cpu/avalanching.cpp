@@ -29,7 +29,8 @@
 // row. After the first iteration, which visits every cell, an iteration
 // visits only the cells where something can happen: pass 1 within one cell
 // of a cell whose layer changed in the last iteration (f reads the 3 x 3
-// heights and the cell's own layer), where a donor still has f > 0 (k_c may
+// heights and the cell's own layer; an isotropic repose's tangent reads the
+// same 3 x 3, and pass 2 recomputes each donor's from it), where a donor still has f > 0 (k_c may
 // change it) and next to ghosts a refill rewrote; pass 2 within one cell of a
 // donor. Everywhere else the iteration is the identity, so the result is
 // exactly that of visiting every cell, at a fraction of the cost once the
@@ -80,17 +81,18 @@ struct Stencil {
 // stays marked, so it is visited again when k_c grows).
 // kBedrock: unlimited supply and one repose tangent for all cells.
 template <bool kBedrock>
-Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, const units_t* sand,
-                      const float* ob, float kc, const Stencil& st, int base, int x0, int x1,
-                      float* __restrict frac) {
+Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, bool isotropic,
+                      const units_t* sand, const float* ob, float kc, const Stencil& st, int base,
+                      int x0, int x1, float* __restrict frac) {
   const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
   const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
   int checks = 0;
   for (int x = x0; x < x1; ++x) {
     const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
                          h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
-    const avalanching::Fraction fr = avalanching::fraction(
-        h[x], hn, kBedrock ? tan_l_const : tan_l[x], kBedrock ? kUnlimited : sand[x], kc);
+    const float t = avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[x], hn, isotropic);
+    const avalanching::Fraction fr =
+        avalanching::fraction(h[x], hn, t, kBedrock ? kUnlimited : sand[x], kc);
     // An obstacle gives nothing (it is a wall, stages/obstacles.h).
     const bool wall = obstacles::is_obstacle(ob[x]);
     frac[x] = wall ? 0.0f : fr.f;
@@ -104,7 +106,7 @@ Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, con
     for (int x = x0; x < x1; ++x) {
       const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
                            h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
-      const float t = kBedrock ? tan_l_const : tan_l[x];
+      const float t = avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[x], hn, isotropic);
       const units_t avail = kBedrock ? kUnlimited : sand[x];
       if (avalanching::fraction(h[x], hn, t, avail, kc).check && !obstacles::is_obstacle(ob[x]))
         frac[x] = avalanching::donor(h[x], hn, t, avail, kc).f;
@@ -116,26 +118,30 @@ Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, con
 // Pass 2 on cells [x0, x1) of a row: units each cell gains and loses.
 // Returns whether any cell sent or received anything.
 template <bool kBedrock>
-bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, const float* frac,
-                      const Stencil& st, int x0, int x1, units_t* __restrict gain,
-                      units_t* __restrict loss) {
+bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, bool isotropic,
+                      const float* frac, const Stencil& st, int x0, int x1,
+                      units_t* __restrict gain, units_t* __restrict loss) {
   const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
   const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
+  // The tangent of the donor at c, as pass 1 computed it (its 3 x 3 heights).
+  auto tangent = [=](long c) {
+    const float hc[8] = {h[c + o0], h[c + o1], h[c + o2], h[c + o3],
+                         h[c + o4], h[c + o5], h[c + o6], h[c + o7]};
+    return avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[c], hc, isotropic);
+  };
   int active = 0;
   for (int x = x0; x < x1; ++x) {
     const float hx = h[x];
     // The donor is the neighbour; it saw this cell in the opposite
     // direction, at the same distance.
     auto in = [=](long o, float dist) {
-      return avalanching::inflow(frac[x + o], h[x + o], hx, kBedrock ? tan_l_const : tan_l[x + o],
-                                 dist);
+      return avalanching::inflow(frac[x + o], h[x + o], hx, tangent(x + o), dist);
     };
     const units_t received = in(o0, 1.0f) + in(o1, kSqrt2) + in(o2, 1.0f) + in(o3, kSqrt2) +
                              in(o4, 1.0f) + in(o5, kSqrt2) + in(o6, 1.0f) + in(o7, kSqrt2);
     const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
                          h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
-    const units_t sent = avalanching::outflow(
-        frac[x], avalanching::excesses(hx, hn, kBedrock ? tan_l_const : tan_l[x]));
+    const units_t sent = avalanching::outflow(frac[x], avalanching::excesses(hx, hn, tangent(x)));
     gain[x - x0] = received;
     loss[x - x0] = sent;
     active += (received | sent) != 0;
@@ -373,6 +379,7 @@ class AvalancheSweep {
   bool fractions(float kc, int grow1) {
     const int ny = g_.ny;
     const float tan_b = m_.tan_l_bedrock;
+    const bool iso = m_.repose_isotropic;
     bool any_positive = false;
     int donor_segments = 0;
 #pragma omp parallel for num_threads(threads_) if (parallel(busy_)) schedule(dynamic, 4) \
@@ -390,10 +397,10 @@ class AvalancheSweep {
         const int base = s * kSegment - widest_;
         Mask donors = 0;
         for_span(visit, s, grow1, [&](int x0, int x1) {
-          donors |= bedrock_ ? fraction_segment<true>(f_.h.row(y), nullptr, tan_b, nullptr,
+          donors |= bedrock_ ? fraction_segment<true>(f_.h.row(y), nullptr, tan_b, iso, nullptr,
                                                       f_.obstacles.row(y), kc, st_, base, x0, x1,
                                                       f_.frac.row(y))
-                             : fraction_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f,
+                             : fraction_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f, iso,
                                                        f_.sand.row(y), f_.obstacles.row(y), kc, st_,
                                                        base, x0, x1, f_.frac.row(y));
         });
@@ -413,6 +420,7 @@ class AvalancheSweep {
   bool exchanges(int grow2) {
     const int ny = g_.ny;
     const float tan_b = m_.tan_l_bedrock;
+    const bool iso = m_.repose_isotropic;
     bool any_change = false, edge_change = false;
     int changed_segments = 0;
     const int fill = e_ + 1;  // refill_round fills the ghosts e + 1 wide
@@ -431,10 +439,10 @@ class AvalancheSweep {
         Mask changed = 0;
         for_span(near_donor, s, grow2, [&](int x0, int x1) {
           const bool active =
-              bedrock_ ? exchange_segment<true>(f_.h.row(y), nullptr, tan_b, f_.frac.row(y), st_,
-                                                x0, x1, gain, loss)
-                       : exchange_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f, f_.frac.row(y),
-                                                 st_, x0, x1, gain, loss);
+              bedrock_ ? exchange_segment<true>(f_.h.row(y), nullptr, tan_b, iso, f_.frac.row(y),
+                                                st_, x0, x1, gain, loss)
+                       : exchange_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f, iso,
+                                                 f_.frac.row(y), st_, x0, x1, gain, loss);
           if (!active) return;
           changed |= apply(y, x0, x1, base, gain, loss);
           any_change = true;

@@ -128,7 +128,8 @@ class CpuBackend final : public Backend {
   std::vector<int> axis_x_i0_, axis_x_i1_;
   std::vector<float> axis_x_t_;
   std::vector<wind_warping::Axis> axis_y_;
-  std::vector<float> block_max_, bound_;  // shadow: height maxima and bounds per block
+  // shadow: height maxima and minima per block, bounds per block of owned cells
+  std::vector<float> block_max_, block_min_, bound_;
 };
 
 }  // namespace erg::cpu

@@ -3,7 +3,9 @@
 //
 // Most cells have no terrain within reach that rises at 10 degrees: a bound on
 // the heights each block of cells can see upwind (the maximum over the blocks
-// its march can reach) settles them without marching.
+// its march can reach; with cubic samples, which can overshoot what they read,
+// raised by their overshoot over the range down to the minimum) settles them
+// without marching.
 #include <algorithm>
 
 #include "backend/cpu/cpu_backend.h"
@@ -21,10 +23,15 @@ void CpuBackend::shadow() {
   // Maxima of B x B blocks of the padded height field (row maxima per block
   // first, a vectorisable pass; then across the block's rows).
   const int pbx = (pitch + B - 1) / B, pby = (g_.rows() + B - 1) / B;
+  // Minima too for the cubic samples, which can overshoot what they read
+  // (wind_shadow::sample_bound).
+  const bool lows = p.cubic;
   block_max_.assign(static_cast<size_t>(pbx) * pby, -3.0e38f);
+  block_min_.assign(lows ? block_max_.size() : 0, 3.0e38f);
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int by = 0; by < pby; ++by) {
     float* out = block_max_.data() + static_cast<size_t>(by) * pbx;
+    float* low = lows ? block_min_.data() + static_cast<size_t>(by) * pbx : nullptr;
     for (int py = by * B; py < std::min((by + 1) * B, g_.rows()); ++py) {
       const float* r = f_.height_m.data() + static_cast<size_t>(py) * pitch;
       for (int bx = 0; bx < pitch / B; ++bx) {
@@ -34,34 +41,53 @@ void CpuBackend::shadow() {
       }
       for (int px = (pitch / B) * B; px < pitch; ++px)
         out[pitch / B] = std::max(out[pitch / B], r[px]);
+      if (!lows) continue;
+      for (int bx = 0; bx < pitch / B; ++bx) {
+        float m = r[bx * B];
+        for (int k = 1; k < B; ++k) m = std::min(m, r[bx * B + k]);
+        low[bx] = std::min(low[bx], m);
+      }
+      for (int px = (pitch / B) * B; px < pitch; ++px)
+        low[pitch / B] = std::min(low[pitch / B], r[px]);
     }
   }
-  // A bound for each block of owned cells: the maximum over every block its
-  // marches can reach (`steps` cells, plus one for the bilinear footprint),
-  // taken along x, then along y.
-  const int reach = p.steps + 1;
+  // A bound for each block of owned cells on every sample its marches can
+  // take: from the blocks they can reach (`steps` cells, plus the samples'
+  // footprint), taken along x, then along y.
+  const int reach = p.steps + wind_shadow::footprint(p);
   const int obx = (g_.nx + B - 1) / B, oby = (g_.ny + B - 1) / B;
   auto span = [&](int i, int n) {
     return std::pair<int, int>{(i * B - reach + g_.halo) / B,
                                (std::min((i + 1) * B, n) - 1 + reach + g_.halo) / B};
   };
-  std::vector<float> along_x(static_cast<size_t>(pby) * obx);
-  for (int by = 0; by < pby; ++by)
-    for (int I = 0; I < obx; ++I) {
-      const auto [x0, x1] = span(I, g_.nx);
-      float m = -3.0e38f;
-      for (int bx = x0; bx <= x1; ++bx)
-        m = std::max(m, block_max_[static_cast<size_t>(by) * pbx + bx]);
-      along_x[static_cast<size_t>(by) * obx + I] = m;
+  // The extreme (max, or min when `lo`) over the blocks within reach.
+  auto within_reach = [&](const std::vector<float>& blocks, bool lo) {
+    const float none = lo ? 3.0e38f : -3.0e38f;
+    auto pick = [lo](float a, float b) { return lo ? std::min(a, b) : std::max(a, b); };
+    std::vector<float> along_x(static_cast<size_t>(pby) * obx);
+    for (int by = 0; by < pby; ++by)
+      for (int I = 0; I < obx; ++I) {
+        const auto [x0, x1] = span(I, g_.nx);
+        float m = none;
+        for (int bx = x0; bx <= x1; ++bx) m = pick(m, blocks[static_cast<size_t>(by) * pbx + bx]);
+        along_x[static_cast<size_t>(by) * obx + I] = m;
+      }
+    std::vector<float> out(static_cast<size_t>(oby) * obx, none);
+    for (int J = 0; J < oby; ++J) {
+      const auto [y0, y1] = span(J, g_.ny);
+      for (int I = 0; I < obx; ++I) {
+        float m = none;
+        for (int by = y0; by <= y1; ++by) m = pick(m, along_x[static_cast<size_t>(by) * obx + I]);
+        out[static_cast<size_t>(J) * obx + I] = m;
+      }
     }
-  bound_.assign(static_cast<size_t>(oby) * obx, -3.0e38f);
-  for (int J = 0; J < oby; ++J) {
-    const auto [y0, y1] = span(J, g_.ny);
-    for (int I = 0; I < obx; ++I) {
-      float m = -3.0e38f;
-      for (int by = y0; by <= y1; ++by) m = std::max(m, along_x[static_cast<size_t>(by) * obx + I]);
-      bound_[static_cast<size_t>(J) * obx + I] = m;
-    }
+    return out;
+  };
+  bound_ = within_reach(block_max_, false);
+  if (lows) {
+    const std::vector<float> least = within_reach(block_min_, true);
+    for (size_t k = 0; k < bound_.size(); ++k)
+      bound_[k] = wind_shadow::sample_bound(bound_[k], least[k], p);
   }
   // Segments of a row: settled by the bound, or marched step-major.
 #pragma omp parallel for num_threads(threads_) schedule(dynamic, 4)

@@ -58,14 +58,15 @@ __global__ void level0_kernel(TileGeom g, int grow, bool ghosts_only, bool bedro
 // same values cell by cell). kBedrock: unlimited supply and one repose tangent.
 template <bool kBedrock>
 __global__ void donor_kernel(TileGeom g, int grow, Offsets off, const float* h, const float* tan_l,
-                             float tan_l_const, const units_t* sand, const float* ob, float kc,
-                             float* frac, units_t* out, int* moved, int* donors) {
+                             float tan_l_const, bool isotropic, const units_t* sand,
+                             const float* ob, float kc, float* frac, units_t* out, int* moved,
+                             int* donors) {
   int x, y;
   if (!grown_cell(g, grow, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
   float hn[8];
   for (int k = 0; k < 8; ++k) hn[k] = h[i + off.o[k]];
-  const float t = kBedrock ? tan_l_const : tan_l[i];
+  const float t = avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[i], hn, isotropic);
   const units_t avail = kBedrock ? kUnlimited : sand[i];
   avalanching::Donor d = avalanching::donor(h[i], hn, t, avail, kc);
   if (obstacles::is_obstacle(ob[i])) d = {0.0f, 0, false};  // a wall gives nothing
@@ -80,9 +81,9 @@ __global__ void donor_kernel(TileGeom g, int grow, Offsets off, const float* h, 
 // and its heights in the other height buffer.
 template <bool kBedrock>
 __global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h, const float* tan_l,
-                              float tan_l_const, const float* frac, const units_t* out,
-                              bool to_sand, units_t* target, units_t* sand, const units_t* bedrock,
-                              const float* ob, float* h_next) {
+                              float tan_l_const, bool isotropic, const float* frac,
+                              const units_t* out, bool to_sand, units_t* target, units_t* sand,
+                              const units_t* bedrock, const float* ob, float* h_next) {
   int x, y;
   if (!grown_cell(g, grow, x, y)) return;
   const long long i = static_cast<long long>(g.at(x, y));
@@ -91,7 +92,10 @@ __global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h,
     // The donor is the neighbour; it saw this cell in the opposite direction,
     // at the same distance.
     const long long j = i + off.o[k];
-    const float t = kBedrock ? tan_l_const : tan_l[j];
+    // The donor's tangent as donor_kernel computed it, from its 3 x 3 heights.
+    float hj[8];
+    for (int n = 0; n < 8; ++n) hj[n] = h[j + off.o[n]];
+    const float t = avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[j], hj, isotropic);
     in += avalanching::inflow(frac[j], h[j], h[i], t, neighbour(k).dist);
   }
   if (!kBedrock) {
@@ -174,21 +178,21 @@ AvalancheResult CudaBackend::avalanche(bool bedrock, int iterations, const Refil
     int* donors = moved_.get() + iterations + (it - 1);
     if (bedrock)
       ERG_LAUNCH(donor_kernel<true>, l1.grid, l1.block, g_, grow1, off, h_a_.get(), nullptr,
-                 m_.tan_l_bedrock, nullptr, d_.obstacles.get(), kc, frac_.get(), out_.get(), moved,
-                 donors);
+                 m_.tan_l_bedrock, m_.repose_isotropic, nullptr, d_.obstacles.get(), kc,
+                 frac_.get(), out_.get(), moved, donors);
     else
       ERG_LAUNCH(donor_kernel<false>, l1.grid, l1.block, g_, grow1, off, h_a_.get(), d_.tan_l.get(),
-                 0.0f, d_.sand.get(), d_.obstacles.get(), kc, frac_.get(), out_.get(), moved,
-                 donors);
+                 0.0f, m_.repose_isotropic, d_.sand.get(), d_.obstacles.get(), kc, frac_.get(),
+                 out_.get(), moved, donors);
 
     if (bedrock)
       ERG_LAUNCH(inflow_kernel<true>, l2.grid, l2.block, g_, grow2, off, h_a_.get(), nullptr,
-                 m_.tan_l_bedrock, frac_.get(), out_.get(), m_.bedrock_to_sand, target.get(),
-                 d_.sand.get(), d_.bedrock.get(), d_.obstacles.get(), h_b_.get());
+                 m_.tan_l_bedrock, m_.repose_isotropic, frac_.get(), out_.get(), m_.bedrock_to_sand,
+                 target.get(), d_.sand.get(), d_.bedrock.get(), d_.obstacles.get(), h_b_.get());
     else
       ERG_LAUNCH(inflow_kernel<false>, l2.grid, l2.block, g_, grow2, off, h_a_.get(),
-                 d_.tan_l.get(), 0.0f, frac_.get(), out_.get(), false, target.get(), d_.sand.get(),
-                 d_.bedrock.get(), d_.obstacles.get(), h_b_.get());
+                 d_.tan_l.get(), 0.0f, m_.repose_isotropic, frac_.get(), out_.get(), false,
+                 target.get(), d_.sand.get(), d_.bedrock.get(), d_.obstacles.get(), h_b_.get());
     h_a_.swap(h_b_);
   }
 
