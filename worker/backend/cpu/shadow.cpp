@@ -28,27 +28,23 @@ void CpuBackend::shadow() {
   const bool lows = p.cubic;
   block_max_.assign(static_cast<size_t>(pbx) * pby, -3.0e38f);
   block_min_.assign(lows ? block_max_.size() : 0, 3.0e38f);
+  // Row r folded into the blocks' extremes `out` with pick (max or min).
+  auto fold_row = [pitch](const float* r, float* out, auto pick) {
+    for (int bx = 0; bx < pitch / B; ++bx) {
+      float m = r[bx * B];
+      for (int k = 1; k < B; ++k) m = pick(m, r[bx * B + k]);
+      out[bx] = pick(out[bx], m);
+    }
+    for (int px = (pitch / B) * B; px < pitch; ++px) out[pitch / B] = pick(out[pitch / B], r[px]);
+  };
+  const auto max_of = [](float a, float b) { return std::max(a, b); };
+  const auto min_of = [](float a, float b) { return std::min(a, b); };
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int by = 0; by < pby; ++by) {
-    float* out = block_max_.data() + static_cast<size_t>(by) * pbx;
-    float* low = lows ? block_min_.data() + static_cast<size_t>(by) * pbx : nullptr;
     for (int py = by * B; py < std::min((by + 1) * B, g_.rows()); ++py) {
       const float* r = f_.height_m.data() + static_cast<size_t>(py) * pitch;
-      for (int bx = 0; bx < pitch / B; ++bx) {
-        float m = r[bx * B];
-        for (int k = 1; k < B; ++k) m = std::max(m, r[bx * B + k]);
-        out[bx] = std::max(out[bx], m);
-      }
-      for (int px = (pitch / B) * B; px < pitch; ++px)
-        out[pitch / B] = std::max(out[pitch / B], r[px]);
-      if (!lows) continue;
-      for (int bx = 0; bx < pitch / B; ++bx) {
-        float m = r[bx * B];
-        for (int k = 1; k < B; ++k) m = std::min(m, r[bx * B + k]);
-        low[bx] = std::min(low[bx], m);
-      }
-      for (int px = (pitch / B) * B; px < pitch; ++px)
-        low[pitch / B] = std::min(low[pitch / B], r[px]);
+      fold_row(r, block_max_.data() + static_cast<size_t>(by) * pbx, max_of);
+      if (lows) fold_row(r, block_min_.data() + static_cast<size_t>(by) * pbx, min_of);
     }
   }
   // A bound for each block of owned cells on every sample its marches can
