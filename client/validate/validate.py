@@ -72,9 +72,9 @@ def _seconds_so_far(out):
         return 0.0
 
 
-def _write_seconds(out, seconds, complete):
+def _write_seconds(out, seconds):
     tmp = Path(str(_time_file(out)) + ".tmp")
-    tmp.write_text(json.dumps({"seconds": round(seconds, 1), "complete": complete}) + "\n")
+    tmp.write_text(json.dumps({"seconds": round(seconds, 1)}) + "\n")
     os.replace(tmp, _time_file(out))
 
 
@@ -93,8 +93,7 @@ def run_scene(worker, job_path, out, threads, reuse, index, count):
             raise SystemExit(f"erg validate: {out} exists; choose a new --out or pass --reuse")
         if run_complete(out, job):
             log(f"[{index}/{count}] {job['name']}: reusing {out}")
-            tf = _time_file(out)
-            return json.loads(tf.read_text())["seconds"] if tf.exists() else None
+            return _seconds_so_far(out) if _time_file(out).exists() else None
         if any((out / "checkpoints").glob("step_*.h5")):
             before = _seconds_so_far(out)
             log(f"[{index}/{count}] {job['name']}: resuming the interrupted run in {out} "
@@ -129,7 +128,7 @@ def run_scene(worker, job_path, out, threads, reuse, index, count):
                 if decile != last:
                     last = decile
                     # The time so far, kept for a resume after an interruption.
-                    _write_seconds(out, before + time.time() - t0, False)
+                    _write_seconds(out, before + time.time() - t0)
                     log(f"[{index}/{count}] {job['name']}: step {step}/{steps} "
                         f"({before + time.time() - t0:.0f} s)")
         rc = p.wait()
@@ -137,7 +136,7 @@ def run_scene(worker, job_path, out, threads, reuse, index, count):
         tail = Path(str(out) + ".log").read_text()[-2000:]
         raise SystemExit(f"erg validate: erg-worker failed on {job_path} (exit {rc}):\n{tail}")
     seconds = before + time.time() - t0
-    _write_seconds(out, seconds, True)
+    _write_seconds(out, seconds)
     log(f"[{index}/{count}] {job['name']}: done in {seconds:.0f} s")
     return seconds
 

@@ -30,24 +30,23 @@
 // visits only the cells where something can happen: pass 1 within one cell
 // of a cell whose layer changed in the last iteration (f reads the 3 x 3
 // heights and the cell's own layer; an isotropic repose's tangent reads the
-// same 3 x 3, and pass 2 recomputes each donor's from it), where a donor still has f > 0 (k_c may
-// change it) and next to ghosts a refill rewrote; pass 2 within one cell of a
-// donor. Everywhere else the iteration is the identity, so the result is
-// exactly that of visiting every cell, at a fraction of the cost once the
-// terrain is mostly settled: a slip face still relaxing is a band a few
-// cells wide, and a step that settles it runs hundreds of iterations on it.
-// Each segment computes the run from its first to its last marked cell (a
-// cell recomputed without need gets the same value again), so the passes
-// keep their vectorised loops. Iterations stop once nothing moved and
-// nothing can move later: on one tile at once, with several at the end of
-// the round in which every tile has found so (results do not depend on it:
-// the skipped iterations are identities).
+// same 3 x 3, and pass 2 recomputes each donor's from it), where a donor
+// still has f > 0 (k_c may change it) and next to ghosts a refill rewrote; pass 2 within one cell
+// of a donor. Everywhere else the iteration is the identity, so the result is exactly that of
+// visiting every cell, at a fraction of the cost once the terrain is mostly settled: a slip face
+// still relaxing is a band a few cells wide, and a step that settles it runs hundreds of iterations
+// on it. Each segment computes the run from its first to its last marked cell (a cell recomputed
+// without need gets the same value again), so the passes keep their vectorised loops. Iterations
+// stop once nothing moved and nothing can move later: on one tile at once, with several at the end
+// of the round in which every tile has found so (results do not depend on it: the skipped
+// iterations are identities).
 #include "stages/avalanching.h"
 
 #include <algorithm>
 #include <bit>
 #include <cstdint>
 #include <limits>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -80,17 +79,19 @@ struct Stencil {
 // correction below (which may set a donor that is stuck at this k_c to 0; it
 // stays marked, so it is visited again when k_c grows).
 // kBedrock: unlimited supply and one repose tangent for all cells.
-template <bool kBedrock>
-Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, bool isotropic,
-                      const units_t* sand, const float* ob, float kc, const Stencil& st, int base,
-                      int x0, int x1, float* __restrict frac) {
+// kIsotropic: model.repose ISOTROPIC (a template parameter, so that [N24]'s
+// neighbour pairs run the loops they ran before the option existed).
+template <bool kBedrock, bool kIsotropic>
+Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, const units_t* sand,
+                      const float* ob, float kc, const Stencil& st, int base, int x0, int x1,
+                      float* __restrict frac) {
   const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
   const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
   int checks = 0;
   for (int x = x0; x < x1; ++x) {
     const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
                          h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
-    const float t = avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[x], hn, isotropic);
+    const float t = avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[x], hn, kIsotropic);
     const avalanching::Fraction fr =
         avalanching::fraction(h[x], hn, t, kBedrock ? kUnlimited : sand[x], kc);
     // An obstacle gives nothing (it is a wall, stages/obstacles.h).
@@ -106,7 +107,7 @@ Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, boo
     for (int x = x0; x < x1; ++x) {
       const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
                            h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
-      const float t = avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[x], hn, isotropic);
+      const float t = avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[x], hn, kIsotropic);
       const units_t avail = kBedrock ? kUnlimited : sand[x];
       if (avalanching::fraction(h[x], hn, t, avail, kc).check && !obstacles::is_obstacle(ob[x]))
         frac[x] = avalanching::donor(h[x], hn, t, avail, kc).f;
@@ -117,17 +118,23 @@ Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, boo
 
 // Pass 2 on cells [x0, x1) of a row: units each cell gains and loses.
 // Returns whether any cell sent or received anything.
-template <bool kBedrock>
-bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, bool isotropic,
-                      const float* frac, const Stencil& st, int x0, int x1,
-                      units_t* __restrict gain, units_t* __restrict loss) {
+template <bool kBedrock, bool kIsotropic>
+bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, const float* frac,
+                      const Stencil& st, int x0, int x1, units_t* __restrict gain,
+                      units_t* __restrict loss) {
   const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
   const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
-  // The tangent of the donor at c, as pass 1 computed it (its 3 x 3 heights).
+  // The tangent of the donor at c, as pass 1 computed it (isotropic: from
+  // its 3 x 3 heights).
   auto tangent = [=](long c) {
-    const float hc[8] = {h[c + o0], h[c + o1], h[c + o2], h[c + o3],
-                         h[c + o4], h[c + o5], h[c + o6], h[c + o7]};
-    return avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[c], hc, isotropic);
+    const float t = kBedrock ? tan_l_const : tan_l[c];
+    if constexpr (!kIsotropic) {
+      return t;
+    } else {
+      const float hc[8] = {h[c + o0], h[c + o1], h[c + o2], h[c + o3],
+                           h[c + o4], h[c + o5], h[c + o6], h[c + o7]};
+      return avalanching::donor_tangent(t, hc, true);
+    }
   };
   int active = 0;
   for (int x = x0; x < x1; ++x) {
@@ -147,6 +154,13 @@ bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, boo
     active += (received | sent) != 0;
   }
   return active > 0;
+}
+
+// Calls run(std::bool_constant<iso>{}): a pass's loops compiled for the
+// repose the job chose.
+template <class Run>
+decltype(auto) with_repose(bool iso, Run&& run) {
+  return iso ? run(std::true_type{}) : run(std::false_type{});
 }
 
 // The cells of segment (r, s) within one cell (8-neighbourhood) of a marked
@@ -397,12 +411,15 @@ class AvalancheSweep {
         const int base = s * kSegment - widest_;
         Mask donors = 0;
         for_span(visit, s, grow1, [&](int x0, int x1) {
-          donors |= bedrock_ ? fraction_segment<true>(f_.h.row(y), nullptr, tan_b, iso, nullptr,
-                                                      f_.obstacles.row(y), kc, st_, base, x0, x1,
-                                                      f_.frac.row(y))
-                             : fraction_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f, iso,
-                                                       f_.sand.row(y), f_.obstacles.row(y), kc, st_,
-                                                       base, x0, x1, f_.frac.row(y));
+          donors |= with_repose(iso, [&](auto is) {
+            constexpr bool kIso = decltype(is)::value;
+            return bedrock_ ? fraction_segment<true, kIso>(f_.h.row(y), nullptr, tan_b, nullptr,
+                                                           f_.obstacles.row(y), kc, st_, base, x0,
+                                                           x1, f_.frac.row(y))
+                            : fraction_segment<false, kIso>(f_.h.row(y), f_.tan_l.row(y), 0.0f,
+                                                            f_.sand.row(y), f_.obstacles.row(y), kc,
+                                                            st_, base, x0, x1, f_.frac.row(y));
+          });
         });
         donors_[k] = donors;
         any_positive = any_positive || donors != 0;
@@ -438,11 +455,14 @@ class AvalancheSweep {
         const int base = s * kSegment - widest_;
         Mask changed = 0;
         for_span(near_donor, s, grow2, [&](int x0, int x1) {
-          const bool active =
-              bedrock_ ? exchange_segment<true>(f_.h.row(y), nullptr, tan_b, iso, f_.frac.row(y),
-                                                st_, x0, x1, gain, loss)
-                       : exchange_segment<false>(f_.h.row(y), f_.tan_l.row(y), 0.0f, iso,
-                                                 f_.frac.row(y), st_, x0, x1, gain, loss);
+          const bool active = with_repose(iso, [&](auto is) {
+            constexpr bool kIso = decltype(is)::value;
+            return bedrock_
+                       ? exchange_segment<true, kIso>(f_.h.row(y), nullptr, tan_b, f_.frac.row(y),
+                                                      st_, x0, x1, gain, loss)
+                       : exchange_segment<false, kIso>(f_.h.row(y), f_.tan_l.row(y), 0.0f,
+                                                       f_.frac.row(y), st_, x0, x1, gain, loss);
+          });
           if (!active) return;
           changed |= apply(y, x0, x1, base, gain, loss);
           any_change = true;

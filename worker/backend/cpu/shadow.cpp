@@ -37,14 +37,14 @@ void CpuBackend::shadow() {
     }
     for (int px = (pitch / B) * B; px < pitch; ++px) out[pitch / B] = pick(out[pitch / B], r[px]);
   };
-  const auto max_of = [](float a, float b) { return std::max(a, b); };
-  const auto min_of = [](float a, float b) { return std::min(a, b); };
+  const auto higher = [](float a, float b) { return std::max(a, b); };
+  const auto lower = [](float a, float b) { return std::min(a, b); };
 #pragma omp parallel for num_threads(threads_) schedule(static)
   for (int by = 0; by < pby; ++by) {
     for (int py = by * B; py < std::min((by + 1) * B, g_.rows()); ++py) {
       const float* r = f_.height_m.data() + static_cast<size_t>(py) * pitch;
-      fold_row(r, block_max_.data() + static_cast<size_t>(by) * pbx, max_of);
-      if (lows) fold_row(r, block_min_.data() + static_cast<size_t>(by) * pbx, min_of);
+      fold_row(r, block_max_.data() + static_cast<size_t>(by) * pbx, higher);
+      if (lows) fold_row(r, block_min_.data() + static_cast<size_t>(by) * pbx, lower);
     }
   }
   // A bound for each block of owned cells on every sample its marches can
@@ -56,10 +56,9 @@ void CpuBackend::shadow() {
     return std::pair<int, int>{(i * B - reach + g_.halo) / B,
                                (std::min((i + 1) * B, n) - 1 + reach + g_.halo) / B};
   };
-  // The extreme (max, or min when `lo`) over the blocks within reach.
-  auto within_reach = [&](const std::vector<float>& blocks, bool lo) {
-    const float none = lo ? 3.0e38f : -3.0e38f;
-    auto pick = [lo](float a, float b) { return lo ? std::min(a, b) : std::max(a, b); };
+  // The extreme (pick: higher or lower; none: its identity) over the blocks
+  // within reach.
+  auto within_reach = [&](const std::vector<float>& blocks, auto pick, float none) {
     std::vector<float> along_x(static_cast<size_t>(pby) * obx);
     for (int by = 0; by < pby; ++by)
       for (int I = 0; I < obx; ++I) {
@@ -79,9 +78,9 @@ void CpuBackend::shadow() {
     }
     return out;
   };
-  bound_ = within_reach(block_max_, false);
+  bound_ = within_reach(block_max_, higher, -3.0e38f);
   if (lows) {
-    const std::vector<float> least = within_reach(block_min_, true);
+    const std::vector<float> least = within_reach(block_min_, lower, 3.0e38f);
     for (size_t k = 0; k < bound_.size(); ++k)
       bound_[k] = wind_shadow::sample_bound(bound_[k], least[k], p);
   }

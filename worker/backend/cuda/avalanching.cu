@@ -92,10 +92,14 @@ __global__ void inflow_kernel(TileGeom g, int grow, Offsets off, const float* h,
     // The donor is the neighbour; it saw this cell in the opposite direction,
     // at the same distance.
     const long long j = i + off.o[k];
-    // The donor's tangent as donor_kernel computed it, from its 3 x 3 heights.
-    float hj[8];
-    for (int n = 0; n < 8; ++n) hj[n] = h[j + off.o[n]];
-    const float t = avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[j], hj, isotropic);
+    // The donor's tangent as donor_kernel computed it (isotropic: from its
+    // 3 x 3 heights, read only then; the branch is uniform over the launch).
+    float t = kBedrock ? tan_l_const : tan_l[j];
+    if (isotropic) {
+      float hj[8];
+      for (int n = 0; n < 8; ++n) hj[n] = h[j + off.o[n]];
+      t = avalanching::donor_tangent(t, hj, true);
+    }
     in += avalanching::inflow(frac[j], h[j], h[i], t, neighbour(k).dist);
   }
   if (!kBedrock) {
