@@ -7,8 +7,10 @@
 #include <gtest/gtest.h>
 
 #include <map>
+#include <set>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "job/spec.h"
 #include "job_test_util.h"
@@ -109,6 +111,54 @@ TEST(Defaults, RunSeedAndTransportDefaults) {
   EXPECT_EQ(s.transport(), JobSpec::EXPECTED);
 }
 
+TEST(Defaults, UnsetEnumsTakeTheValueTheProtoNames) {
+  const JobSpec s = parse_with_defaults(R"({
+    "domain": {"nx": 64, "ny": 48, "cell_size_m": 1},
+    "wind": {"constant": {"speed_mps": 0.3}, "speed_is": "SHEAR_VELOCITY"},
+    "wind_primitives": [{"vortex": {"x_m": 1, "y_m": 1, "radius_m": 5, "peak_speed_mps": 1}}],
+    "events": [{"step": 2, "wind": {"constant": {"speed_mps": 5}}}]
+  })");
+  EXPECT_EQ(s.transport(), JobSpec::EXPECTED);
+  EXPECT_EQ(s.model().shadow_sampling(), erg::v1::ModelParameters::BILINEAR);
+  EXPECT_EQ(s.model().repose(), erg::v1::ModelParameters::NEIGHBOUR_PAIRS);
+  EXPECT_EQ(s.physics().flux_law(), erg::v1::PhysicalParameters::LETTAU_1978);
+  EXPECT_EQ(s.wind_primitives(0).vortex().rotation(), erg::v1::Vortex::COUNTERCLOCKWISE);
+  // Set values stay; an event's regime gets its own default.
+  EXPECT_EQ(s.wind().speed_is(), erg::v1::WindRegime::SHEAR_VELOCITY);
+  EXPECT_EQ(s.events(0).wind().speed_is(), erg::v1::WindRegime::MODEL);
+  EXPECT_FALSE(s.model().bedrock_to_sand());
+  EXPECT_FALSE(s.model().echo_dunes());
+}
+
+// Every default_text in job.proto names a value its enum has (a misspelt one
+// would leave the field unset), and every enum field either has one or says
+// in its doc what unset means.
+TEST(Defaults, EveryEnumDefaultIsOneOfItsValues) {
+  const pb::FileDescriptor* file = JobSpec::descriptor()->file();
+  std::vector<const pb::Descriptor*> todo;
+  for (int i = 0; i < file->message_type_count(); ++i) todo.push_back(file->message_type(i));
+  int enums = 0;
+  while (!todo.empty()) {
+    const pb::Descriptor* d = todo.back();
+    todo.pop_back();
+    for (int i = 0; i < d->nested_type_count(); ++i) todo.push_back(d->nested_type(i));
+    for (int i = 0; i < d->field_count(); ++i) {
+      const pb::FieldDescriptor* f = d->field(i);
+      const auto& s = f->options().GetExtension(erg::v1::spec);
+      if (f->cpp_type() != pb::FieldDescriptor::CPPTYPE_ENUM) continue;
+      ++enums;
+      if (s.default_text().empty()) {
+        EXPECT_FALSE(s.doc().empty()) << f->full_name() << ": no default and no doc";
+        continue;
+      }
+      EXPECT_NE(f->enum_type()->FindValueByName(s.default_text()), nullptr)
+          << f->full_name() << " default_text " << s.default_text();
+      EXPECT_NE(s.default_text().find("UNSPECIFIED"), 0u) << f->full_name();
+    }
+  }
+  EXPECT_GE(enums, 8);
+}
+
 TEST(Defaults, KeepsWhatTheJobSets) {
   const JobSpec s = parse_with_defaults(R"({
     "domain": {"nx": 64, "ny": 48, "cell_size_m": 2},
@@ -173,8 +223,11 @@ TEST(Defaults, FillsNestedSourcesRegimesAndEvents) {
   EXPECT_EQ(sand.patches().falloff_m(), 5);
   EXPECT_EQ(sand.uniform().min(), 0);
   EXPECT_EQ(sand.uniform().max(), 1);
-  EXPECT_EQ(sand.piles(0).shape(), erg::v1::Pile::SHAPE_UNSPECIFIED);
+  EXPECT_EQ(sand.piles(0).shape(), erg::v1::Pile::CONE);
   EXPECT_EQ(s.layers().vegetation().map().scale(), 1);
+  EXPECT_EQ(s.layers().vegetation().map().dataset(), "/data");
+  // Unset: guessed from the file's extension, so no default is invented.
+  EXPECT_EQ(s.layers().vegetation().map().format(), erg::v1::MapFile::FORMAT_UNSPECIFIED);
   EXPECT_EQ(s.layers().vegetation().map().offset(), 0);
   EXPECT_EQ(s.wind().rose().hold_steps(), 1);
   EXPECT_EQ(s.wind().rose().sector_width_deg(), 0);
@@ -262,6 +315,47 @@ TEST(ParameterTable, ListsVenturiWithDefaultRangeAndSource) {
   EXPECT_NE(row.find("| 0.005 |"), std::string::npos) << row;
   EXPECT_NE(row.find("[0, 1] 1/m"), std::string::npos) << row;
   EXPECT_NE(row.find("P19 4.2; N24 eq. 1"), std::string::npos) << row;
+}
+
+// The unknown-field error points users at `erg params` for every field, so
+// every field of every message a job can hold has a row (enums with their
+// values, booleans, text).
+TEST(ParameterTable, ListsEveryFieldWithItsValues) {
+  const std::string t = parameter_table_markdown();
+  std::vector<const pb::Descriptor*> todo = {JobSpec::descriptor()};
+  std::set<std::string> seen;
+  while (!todo.empty()) {
+    const pb::Descriptor* d = todo.back();
+    todo.pop_back();
+    if (!seen.insert(d->full_name()).second) continue;
+    for (int i = 0; i < d->field_count(); ++i) {
+      const pb::FieldDescriptor* f = d->field(i);
+      if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE) {
+        todo.push_back(f->message_type());
+        continue;
+      }
+      const std::string tail = "." + f->name() + "` |";
+      const std::string top = "| `" + f->name() + "` |";
+      EXPECT_TRUE(t.find(tail) != std::string::npos || t.find(top) != std::string::npos)
+          << f->full_name() << " has no row";
+    }
+  }
+  EXPECT_NE(table_row(t, "transport").find("| EXPECTED | EXPECTED, STOCHASTIC |"),
+            std::string::npos)
+      << table_row(t, "transport");
+  EXPECT_NE(table_row(t, "model.repose").find("| NEIGHBOUR_PAIRS | NEIGHBOUR_PAIRS, ISOTROPIC |"),
+            std::string::npos)
+      << table_row(t, "model.repose");
+  EXPECT_NE(table_row(t, "model.shadow_sampling").find("| BILINEAR | BILINEAR, CUBIC |"),
+            std::string::npos);
+  EXPECT_NE(table_row(t, "physics.flux_law").find("| LETTAU_1978 |"), std::string::npos);
+  EXPECT_NE(table_row(t, "model.echo_dunes").find("| false | true, false |"), std::string::npos)
+      << table_row(t, "model.echo_dunes");
+  EXPECT_NE(table_row(t, "layers.sand.map.dataset").find("| /data | text |"), std::string::npos)
+      << table_row(t, "layers.sand.map.dataset");
+  EXPECT_NE(table_row(t, "layers.sand.map.format").find("| - | HDF5, PNG16, GEOTIFF, EXR |"),
+            std::string::npos)
+      << table_row(t, "layers.sand.map.format");
 }
 
 TEST(ParameterTable, DefaultsAreWrittenPlainly) {

@@ -57,7 +57,15 @@ io::Map load_map(const erg::v1::MapFile& map, const erg::v1::JobSpec& spec,
   try {
     switch (format) {
       case erg::v1::MapFile::HDF5:
-        m = io::read_hdf5_map(file, map.dataset().empty() ? "/data" : map.dataset());
+        // Unset before the defaults are applied (a job being checked): the
+        // proto's default_text.
+        m = io::read_hdf5_map(file, map.dataset().empty()
+                                        ? erg::v1::MapFile::descriptor()
+                                              ->FindFieldByName("dataset")
+                                              ->options()
+                                              .GetExtension(erg::v1::spec)
+                                              .default_text()
+                                        : map.dataset());
         break;
       case erg::v1::MapFile::PNG16:
         m = io::read_png_map(file);

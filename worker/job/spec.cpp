@@ -131,8 +131,18 @@ void defaults_rec(pb::Message& m) {
       }
       continue;
     }
-    if (f->is_repeated() || !f->has_presence()) continue;
+    if (f->is_repeated()) continue;
     const auto& s = spec_of(f);
+    // An enum at 0 (*_UNSPECIFIED) or an empty string outside a oneof means
+    // the value the proto names (FieldSpec.default_text).
+    if (!s.default_text().empty() && !f->real_containing_oneof()) {
+      if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_ENUM && r->GetEnumValue(m, f) == 0) {
+        if (const auto* v = f->enum_type()->FindValueByName(s.default_text())) r->SetEnum(&m, f, v);
+      } else if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_STRING && r->GetString(m, f).empty())
+        r->SetString(&m, f, s.default_text());
+      continue;
+    }
+    if (!f->has_presence()) continue;
     if (s.has_default_value() && !r->HasField(m, f)) set_default(m, f, s.default_value());
   }
 }
@@ -663,12 +673,6 @@ void apply_defaults(JobSpec& spec) {
       spec.wind().speed_is() == erg::v1::WindRegime::WIND_AT_HEIGHT)
     spec.mutable_physics();
   defaults_rec(spec);
-  if (spec.transport() == JobSpec::TRANSPORT_UNSPECIFIED) spec.set_transport(JobSpec::EXPECTED);
-  auto* m = spec.mutable_model();
-  if (m->shadow_sampling() == erg::v1::ModelParameters::SHADOW_SAMPLING_UNSPECIFIED)
-    m->set_shadow_sampling(erg::v1::ModelParameters::BILINEAR);
-  if (m->repose() == erg::v1::ModelParameters::REPOSE_UNSPECIFIED)
-    m->set_repose(erg::v1::ModelParameters::NEIGHBOUR_PAIRS);
 }
 
 namespace {
@@ -966,13 +970,26 @@ void table_rec(const pb::Descriptor* d, const std::string& path, std::string& ou
       table_rec(f->message_type(), name + (f->is_repeated() ? "[]" : ""), out, depth + 1);
       continue;
     }
-    if (!f->options().HasExtension(erg::v1::spec)) continue;
     const auto& s = spec_of(f);
-    std::string def =
-        s.has_default_value() ? num(s.default_value()) : (s.required() ? "required" : "-");
-    if (f->cpp_type() == pb::FieldDescriptor::CPPTYPE_BOOL && s.has_default_value())
-      def = s.default_value() != 0 ? "true" : "false";
-    std::string range = is_numeric(f) ? range_text(s) : "";
+    std::string def = s.has_default_value()       ? num(s.default_value())
+                      : !s.default_text().empty() ? s.default_text()
+                      : s.required()              ? "required"
+                                                  : "-";
+    std::string range;
+    switch (f->cpp_type()) {
+      case pb::FieldDescriptor::CPPTYPE_BOOL:
+        if (s.has_default_value()) def = s.default_value() != 0 ? "true" : "false";
+        range = "true, false";
+        break;
+      case pb::FieldDescriptor::CPPTYPE_ENUM:
+        range = enum_names(f->enum_type());
+        break;
+      case pb::FieldDescriptor::CPPTYPE_STRING:
+        range = "text";
+        break;
+      default:
+        range = is_numeric(f) ? range_text(s) : "";
+    }
     std::string note = s.source().empty()
                            ? s.doc()
                            : (s.doc().empty() ? s.source() : s.doc() + " (" + s.source() + ")");
