@@ -48,6 +48,11 @@ erg::v1::MapFile::Format map_format(const erg::v1::MapFile& map, const std::stri
   return erg::v1::MapFile::FORMAT_UNSPECIFIED;
 }
 
+static std::string default_dataset() {
+  const auto* f = erg::v1::MapFile::descriptor()->FindFieldByName("dataset");
+  return f->options().GetExtension(erg::v1::spec).default_text();
+}
+
 io::Map load_map(const erg::v1::MapFile& map, const erg::v1::JobSpec& spec,
                  const std::string& base_dir, std::string* note) {
   const std::string file = resolve_path(map.path(), base_dir);
@@ -59,13 +64,7 @@ io::Map load_map(const erg::v1::MapFile& map, const erg::v1::JobSpec& spec,
       case erg::v1::MapFile::HDF5:
         // Unset before the defaults are applied (a job being checked): the
         // proto's default_text.
-        m = io::read_hdf5_map(file, map.dataset().empty()
-                                        ? erg::v1::MapFile::descriptor()
-                                              ->FindFieldByName("dataset")
-                                              ->options()
-                                              .GetExtension(erg::v1::spec)
-                                              .default_text()
-                                        : map.dataset());
+        m = io::read_hdf5_map(file, map.dataset().empty() ? default_dataset() : map.dataset());
         break;
       case erg::v1::MapFile::PNG16:
         m = io::read_png_map(file);
