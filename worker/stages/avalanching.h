@@ -30,8 +30,9 @@
 // a plane of slope g exceeds repose in some pair exactly when g > tan
 // theta_r, whatever its direction. The fall line is the Sobel gradient of
 // the donor's 3 x 3 heights (the 8 neighbours eq. 9 reads already), so a
-// receiver recomputes its donors' tangents from the same heights and both
-// sides still agree to the unit.
+// receiver uses the tangent its donor computed from the same heights (the
+// CPU keeps it per cell from pass 1; the GPU recomputes it) and both sides
+// still agree to the unit.
 #pragma once
 
 #include "core/grid.h"

@@ -30,7 +30,7 @@
 // visits only the cells where something can happen: pass 1 within one cell
 // of a cell whose layer changed in the last iteration (f reads the 3 x 3
 // heights and the cell's own layer; an isotropic repose's tangent reads the
-// same 3 x 3, and pass 2 recomputes each donor's from it), where a donor
+// same 3 x 3, and pass 2 reads each donor's where pass 1 kept it), where a donor
 // still has f > 0 (k_c may change it) and next to ghosts a refill rewrote; pass 2 within one cell
 // of a donor. Everywhere else the iteration is the identity, so the result is exactly that of
 // visiting every cell, at a fraction of the cost once the terrain is mostly settled: a slip face
@@ -80,11 +80,12 @@ struct Stencil {
 // stays marked, so it is visited again when k_c grows).
 // kBedrock: unlimited supply and one repose tangent for all cells.
 // kIsotropic: model.repose ISOTROPIC (a template parameter, so that [N24]'s
-// neighbour pairs run the loops they ran before the option existed).
+// neighbour pairs run the loops they ran before the option existed); each
+// cell's tangent, which reads its 3 x 3 heights, is kept in tan_d for pass 2.
 template <bool kBedrock, bool kIsotropic>
 Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, const units_t* sand,
                       const float* ob, float kc, const Stencil& st, int base, int x0, int x1,
-                      float* __restrict frac) {
+                      float* __restrict frac, float* __restrict tan_d) {
   const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
   const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
   int checks = 0;
@@ -92,6 +93,7 @@ Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, con
     const float hn[8] = {h[x + o0], h[x + o1], h[x + o2], h[x + o3],
                          h[x + o4], h[x + o5], h[x + o6], h[x + o7]};
     const float t = avalanching::donor_tangent(kBedrock ? tan_l_const : tan_l[x], hn, kIsotropic);
+    if constexpr (kIsotropic) tan_d[x] = t;
     const avalanching::Fraction fr =
         avalanching::fraction(h[x], hn, t, kBedrock ? kUnlimited : sand[x], kc);
     // An obstacle gives nothing (it is a wall, stages/obstacles.h).
@@ -120,21 +122,16 @@ Mask fraction_segment(const float* h, const float* tan_l, float tan_l_const, con
 // Returns whether any cell sent or received anything.
 template <bool kBedrock, bool kIsotropic>
 bool exchange_segment(const float* h, const float* tan_l, float tan_l_const, const float* frac,
-                      const Stencil& st, int x0, int x1, units_t* __restrict gain,
-                      units_t* __restrict loss) {
+                      const float* tan_d, const Stencil& st, int x0, int x1,
+                      units_t* __restrict gain, units_t* __restrict loss) {
   const long o0 = st.o[0], o1 = st.o[1], o2 = st.o[2], o3 = st.o[3];
   const long o4 = st.o[4], o5 = st.o[5], o6 = st.o[6], o7 = st.o[7];
-  // The tangent of the donor at c, as pass 1 computed it (isotropic: from
-  // its 3 x 3 heights).
+  // The tangent of the donor at c, as pass 1 computed it (isotropic: kept
+  // where pass 1 computed f, from the same heights, so it is current
+  // wherever f is).
   auto tangent = [=](long c) {
-    const float t = kBedrock ? tan_l_const : tan_l[c];
-    if constexpr (!kIsotropic) {
-      return t;
-    } else {
-      const float hc[8] = {h[c + o0], h[c + o1], h[c + o2], h[c + o3],
-                           h[c + o4], h[c + o5], h[c + o6], h[c + o7]};
-      return avalanching::donor_tangent(t, hc, true);
-    }
+    if constexpr (kIsotropic) return tan_d[c];
+    return kBedrock ? tan_l_const : tan_l[c];
   };
   int active = 0;
   for (int x = x0; x < x1; ++x) {
@@ -193,6 +190,7 @@ struct AvalancheLayers {
   const Field<float>& tan_l;  // sand repose tangents
   Field<float>& h;            // heights in metres (h_a)
   Field<float>& frac;         // each donor's fraction f
+  Field<float>& tan_d;        // each cell's donor tangent (ISOTROPIC only)
 };
 
 // One avalanche of sand or bedrock over `iterations` iterations, in rounds
@@ -413,12 +411,14 @@ class AvalancheSweep {
         for_span(visit, s, grow1, [&](int x0, int x1) {
           donors |= with_repose(iso, [&](auto is) {
             constexpr bool kIso = decltype(is)::value;
-            return bedrock_ ? fraction_segment<true, kIso>(f_.h.row(y), nullptr, tan_b, nullptr,
-                                                           f_.obstacles.row(y), kc, st_, base, x0,
-                                                           x1, f_.frac.row(y))
-                            : fraction_segment<false, kIso>(f_.h.row(y), f_.tan_l.row(y), 0.0f,
-                                                            f_.sand.row(y), f_.obstacles.row(y), kc,
-                                                            st_, base, x0, x1, f_.frac.row(y));
+            float* tan_d = kIso ? f_.tan_d.row(y) : nullptr;
+            return bedrock_
+                       ? fraction_segment<true, kIso>(f_.h.row(y), nullptr, tan_b, nullptr,
+                                                      f_.obstacles.row(y), kc, st_, base, x0, x1,
+                                                      f_.frac.row(y), tan_d)
+                       : fraction_segment<false, kIso>(f_.h.row(y), f_.tan_l.row(y), 0.0f,
+                                                       f_.sand.row(y), f_.obstacles.row(y), kc, st_,
+                                                       base, x0, x1, f_.frac.row(y), tan_d);
           });
         });
         donors_[k] = donors;
@@ -457,11 +457,13 @@ class AvalancheSweep {
         for_span(near_donor, s, grow2, [&](int x0, int x1) {
           const bool active = with_repose(iso, [&](auto is) {
             constexpr bool kIso = decltype(is)::value;
+            const float* tan_d = kIso ? f_.tan_d.row(y) : nullptr;
             return bedrock_
                        ? exchange_segment<true, kIso>(f_.h.row(y), nullptr, tan_b, f_.frac.row(y),
-                                                      st_, x0, x1, gain, loss)
+                                                      tan_d, st_, x0, x1, gain, loss)
                        : exchange_segment<false, kIso>(f_.h.row(y), f_.tan_l.row(y), 0.0f,
-                                                       f_.frac.row(y), st_, x0, x1, gain, loss);
+                                                       f_.frac.row(y), tan_d, st_, x0, x1, gain,
+                                                       loss);
           });
           if (!active) return;
           changed |= apply(y, x0, x1, base, gain, loss);
@@ -553,7 +555,7 @@ AvalancheResult CpuBackend::avalanche(bool bedrock, int iterations, const Refill
   if (iterations <= 0) return {};
   // h_a and f are the two halves of the work buffer that held the wind.
   wind_valid_ = false;
-  const AvalancheLayers layers{f_.bedrock, f_.sand, f_.obstacles, f_.tan_l, h_a_, frac_};
+  const AvalancheLayers layers{f_.bedrock, f_.sand, f_.obstacles, f_.tan_l, h_a_, frac_, tan_d_};
   return AvalancheSweep(m_, g_, threads_, ex_, refill, layers, bedrock, iterations).run(settled);
 }
 

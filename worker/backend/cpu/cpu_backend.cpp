@@ -28,6 +28,7 @@ CpuBackend::CpuBackend(const Model& model, int threads, dist::Exchange& ex)
   });
   work_.reset(g_);
   spare_.reset(g_);
+  if (m_.repose_isotropic) tan_d_.reset(g_);
   float* half = reinterpret_cast<float*>(work_.data());
   f_.wind_x.view(half, g_);
   f_.wind_y.view(half + g_.size(), g_);

@@ -101,7 +101,10 @@ class CpuBackend final : public Backend {
   Field<units_t> work_;
   Field<float> spare_;
   Field<units_t>& sand_next_ = work_;
-  Field<float> h_a_, frac_;     // views of work_'s halves
+  Field<float> h_a_, frac_;  // views of work_'s halves
+  // Avalanching's donor tangents, pass 1 to pass 2: only with model.repose
+  // ISOTROPIC (from the 3 x 3 heights; the pairs' tangent is tan_l itself).
+  Field<float> tan_d_;
   std::vector<float> no_echo_;  // a row of zeros: echo dunes off, no echo field
   const float* echo_row(int y) { return m_.echo.on ? f_.echo.row(y) : no_echo_.data() + g_.halo; }
   // Whether wind and shadow still hold the last step's values, and what
