@@ -5,7 +5,7 @@
 //           [--threads T] [--backend B] [--ranks P] [--tiles PXxPY]
 //   erg run --resume DIR [--steps N]
 //   erg check JOB.json      validate a job and print it with every default filled in
-//   erg params              every model parameter: default, range, unit, source
+//   erg params              every job field: default, allowed values, unit, source
 //   erg export DIR --format F --out FILE [--step S] [--layer L] [--region X0,Y0,W,H]
 //              [--upsample K [--no-amplify]] [--tiles NxM] [--normals]   GeoTIFF, PNG16, EXR, OBJ
 //   erg amplify DIR [--step S] [--region X0,Y0,W,H] [--upsample K] --out FILE.h5
@@ -62,7 +62,7 @@ const CommandUsage kUsage[] = {
      "  erg calibrate JOB.json [--ratios R,R,...] [--drift-steps N]\n"
      "                     the time per step measured, the flat-bed flux against the flux law\n"
      "                     at u* = R u_t, the wind regime's drift against DP/RDP/RDD (JSON)\n"},
-    {"params", "  erg params           list every model parameter with its default and source\n"},
+    {"params", "  erg params           every job field: default, allowed values, source\n"},
     {"export",
      "  erg export DIR --format geotiff|png16|exr|obj --out FILE [--step S]\n"
      "             [--layer height|sand|bedrock|vegetation] [--region X0,Y0,W,H]\n"
