@@ -987,8 +987,8 @@ void table_rec(const pb::Descriptor* d, const std::string& path, std::string& ou
       case pb::FieldDescriptor::CPPTYPE_STRING:
         range = "text";
         break;
-      default:
-        range = is_numeric(f) ? range_text(s) : "";
+      default:  // the numbers (messages recurse above)
+        range = range_text(s);
     }
     std::string note = s.source().empty()
                            ? s.doc()
