@@ -1059,7 +1059,7 @@ def mass_law(rep, T, runs):
 def main():
     ap = argparse.ArgumentParser(prog="erg validate")
     ap.add_argument("--out", required=True)
-    ap.add_argument("--quick", action="store_true", help="the small scenes (about 2 minutes)")
+    ap.add_argument("--quick", action="store_true", help="the small scenes (2-3 minutes)")
     ap.add_argument("--worker", default="erg-worker")
     ap.add_argument("--erg", default="erg", help="the erg binary (erg calibrate)")
     ap.add_argument("--threads", type=int, default=0)

@@ -106,13 +106,13 @@ TEST(PhysicalUnits, BelowThresholdNothingMoves) {
     const double ut = physics::threshold(physics::sand_of(probe));
     const std::string wind = R"({"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": )" +
                              std::to_string(0.9 * ut) + "}}";
-    // Without the shear stress over relief (the default,
-    // physics.shear_stress_a = 0): only the venturi speeds up the crest.
+    // Without the shear stress over relief (physics.shear_stress_a = 0):
+    // only the venturi speeds up the crest.
     auto spec =
         test::spec_from(R"({"domain": {"nx": 64, "ny": 64, "cell_size_m": 1}, "transport": ")" +
                         std::string(transport) +
-                        R"(", "layers": {"sand": {"constant": 0.5, "piles": [{"x_m": 32, "y_m": 32,
-           "height": 3, "radius_m": 20}]}}, "wind": )" +
+                        R"(", "physics": {"shear_stress_a": 0}, "layers": {"sand": {"constant": 0.5,
+           "piles": [{"x_m": 32, "y_m": 32, "height": 3, "radius_m": 20}]}}, "wind": )" +
                         wind + "}");
     Simulation sim(spec, "", test::cpu_threads(1));
     const TileState before = sim.state();

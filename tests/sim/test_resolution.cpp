@@ -44,9 +44,10 @@ TEST(Resolution, DefaultModelJobAtOneMetreIsResolved) {
   EXPECT_TRUE(unresolved_lengths(spec).empty());
 }
 
-// 0.6 x 1.19 m = 0.714 m, under one cell of 1 m: raised to the cell.
+// 0.6 x 1.19 m = 0.714 m, under one cell of 1 m: raised to the cell. (The
+// step resolved, so that the hop's is the only warning.)
 TEST(Resolution, SaturationLengthHopAtOneMetreIsWarned) {
-  const auto spec = job(1.0, kShearWind);
+  const auto spec = job(1.0, kShearWind, R"("model": {"slab_m": 0.025})");
   const UnresolvedLength u = only_one(spec);
   EXPECT_EQ(u.what, "saltation hop");
   EXPECT_NEAR(u.length_m, 0.6 * 2.2 * 2650.0 / 1.225 * 0.00025, 1e-9);
@@ -125,6 +126,26 @@ TEST(Resolution, ShearKernelOnCoarseCellsIsWarned) {
       EXPECT_TRUE(has(u.warning, "4 whole cells (120 m, 20% longer)")) << u.warning;
     }
   EXPECT_TRUE(found);
+}
+
+// With the shear stress on (the physical modes' default), a step lifting
+// more than 1/40 of the cell is warned, with the largest slab that is not;
+// without the stress (A = 0, or model units) the step is not.
+TEST(Resolution, StepIsWarnedOnlyWithTheShearStress) {
+  const auto spec = job(1.0, kShearWind);  // slab_m 0.1, A = 4 by default
+  const std::string w = step_warning(spec);
+  EXPECT_TRUE(has(w, "model.slab_m = 0.1 m, is more than 1/40 of the cell")) << w;
+  EXPECT_TRUE(has(w, "physics.shear_stress_a = 4")) << w;
+  EXPECT_TRUE(has(w, "resolved at model.slab_m <= 0.025 m")) << w;
+  const auto all = resolution_warnings(spec);
+  ASSERT_FALSE(all.empty());
+  EXPECT_EQ(all.back(), w);
+  EXPECT_EQ(step_warning(job(1.0, kShearWind, R"("model": {"slab_m": 0.025})")), "");
+  EXPECT_EQ(step_warning(job(0.5, kShearWind, R"("model": {"slab_m": 0.0125})")), "");
+  EXPECT_NE(step_warning(job(0.5, kShearWind, R"("model": {"slab_m": 0.025})")), "");
+  EXPECT_EQ(step_warning(job(4.0, kShearWind)), "");  // 0.1 m = 1/40 of 4 m
+  EXPECT_EQ(step_warning(job(1.0, kShearWind, R"("physics": {"shear_stress_a": 0})")), "");
+  EXPECT_EQ(step_warning(job(1.0, kModelWind)), "");
 }
 
 // Each warning's finest cell resolves its length (and coarser cells do not).

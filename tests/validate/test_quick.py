@@ -32,7 +32,7 @@ class Quick(unittest.TestCase):
         cls.tmp = tempfile.TemporaryDirectory()
         cls.out = Path(cls.tmp.name) / "validation"
         cls.proc = subprocess.run([ERG, "validate", "--out", str(cls.out), "--quick"],
-                                  capture_output=True, text=True, timeout=175)
+                                  capture_output=True, text=True, timeout=400)
         cls.report = (cls.out / "report.md").read_text() if (cls.out / "report.md").exists() else ""
 
     @classmethod

@@ -21,6 +21,13 @@
 //    then below (l / sigma)^2 / 6 = 1%; a cell wider than sigma / 4 cannot
 //    keep that.
 //
+// One more rule is about the step, not a length: with the shear stress over
+// relief (physical modes, physics.shear_stress_a > 0) a step lifts
+// model.slab_m of sand, and the windward faces' response to the stress
+// changes with that lift until it is at most 1/40 of the cell: above it
+// dunes steepen, calve and spread with the step, not with the physics
+// (docs/physical-units.md, "The step with the stress on").
+//
 // The job still runs (these are warnings, not errors): `erg check`, the
 // worker's start-up log and ergd's answer to a submitted job all say them,
 // in these words.
@@ -42,6 +49,10 @@ inline constexpr double kReachResolvedCells = 4.0;
 // Cells per sigma of a wind-warping Gaussian (stages/wind_warping.h).
 inline constexpr double kSigmaResolvedCells = 4.0;
 
+// The largest model.slab_m per metre of cell whose results, with the shear
+// stress on, no longer change when the step is halved (measured).
+inline constexpr double kSlabPerCellWithStress = 1.0 / 40.0;
+
 // One length the grid does not resolve.
 struct UnresolvedLength {
   std::string what;     // e.g. "saltation hop"
@@ -56,7 +67,11 @@ struct UnresolvedLength {
 // resolve; empty when all are resolved.
 std::vector<UnresolvedLength> unresolved_lengths(const erg::v1::JobSpec& spec);
 
-// The warnings alone, one sentence each (without a "warning:" prefix).
+// The step's warning (see above), or "" when the step is fine.
+std::string step_warning(const erg::v1::JobSpec& spec);
+
+// The warnings alone, the lengths' then the step's, one sentence each
+// (without a "warning:" prefix).
 std::vector<std::string> resolution_warnings(const erg::v1::JobSpec& spec);
 
 }  // namespace erg
