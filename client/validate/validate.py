@@ -43,6 +43,58 @@ def run_complete(out, job):
     return bool(snaps) and snaps[-1].name == f"step_{job['run']['steps']:08d}.h5"
 
 
+def _same_value(a, b):
+    """A scene's value against the run's job.json (protobuf JSON: int64 as
+    strings, numbers as the worker printed them)."""
+    if isinstance(b, str) and not isinstance(a, str):
+        try:
+            b = float(b)
+        except ValueError:
+            return False
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a == b
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+        return math.isclose(a, b, rel_tol=1e-6, abs_tol=0.0)
+    return a == b
+
+
+def job_difference(out, job):
+    """The first field the scene sets that the run in OUT (its job.json) has
+    with another value, as "field: run's -> scene's"; None when every field
+    the scene sets agrees (run.checkpoint_every aside), or when OUT has no
+    job.json to compare with. Defaults the scene leaves to the schema are
+    not compared."""
+    path = out / "job.json"
+    if not path.exists():
+        return None
+    ran = json.loads(path.read_text())
+
+    def walk(a, b, where):
+        if isinstance(a, dict):
+            if not isinstance(b, dict):
+                return f"{where}: {b!r} -> {a!r}"
+            for k, v in a.items():
+                d = walk(v, b.get(k), f"{where}.{k}" if where else k)
+                if d:
+                    return d
+            return None
+        if isinstance(a, list):
+            if not isinstance(b, list) or len(a) != len(b):
+                return f"{where}: {len(b) if isinstance(b, list) else b!r} -> {len(a)} entries"
+            for i, (x, y) in enumerate(zip(a, b)):
+                d = walk(x, y, f"{where}[{i}]")
+                if d:
+                    return d
+            return None
+        return None if _same_value(a, b) else f"{where}: {b!r} -> {a!r}"
+
+    # validate sets the checkpoints itself (checkpoint_every above), and
+    # they are output only.
+    job = {k: v for k, v in job.items()}
+    job["run"] = {k: v for k, v in job.get("run", {}).items() if k != "checkpoint_every"}
+    return walk(job, ran, "")
+
+
 def checkpoint_every(job):
     """Steps between the checkpoints validate asks of each scene: ten a run,
     so that an interrupted suite (the full one runs for hours) resumes with
@@ -91,6 +143,15 @@ def run_scene(worker, job_path, out, threads, reuse, index, count):
     if out.exists():
         if not reuse:
             raise SystemExit(f"erg validate: {out} exists; choose a new --out or pass --reuse")
+        changed = job_difference(out, job)
+        if changed:
+            # The scene changed since that run (a newer erg's scenes): its
+            # snapshots and checkpoints belong to another job.
+            log(f"[{index}/{count}] {job['name']}: {out} holds a run of another job ({changed}); "
+                "starting it again")
+            shutil.rmtree(out)
+            _time_file(out).unlink(missing_ok=True)
+    if out.exists():
         if run_complete(out, job):
             log(f"[{index}/{count}] {job['name']}: reusing {out}")
             return _seconds_so_far(out) if _time_file(out).exists() else None

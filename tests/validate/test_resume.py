@@ -8,6 +8,7 @@ directory is never taken over without --reuse."""
 import io
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -126,6 +127,29 @@ class Resume(unittest.TestCase):
         with self.assertRaises(SystemExit) as e:
             run_quietly(WORKER, self.job_path, self.whole, 1, False, 1, 1)
         self.assertIn("pass --reuse", str(e.exception))
+
+    def test_a_run_of_a_changed_scene_is_started_again(self):
+        # The scene's step changed since the run (as a newer erg's scenes
+        # do): the old snapshots and checkpoints are another job's, so the
+        # run is not reused, nor resumed, but started again.
+        out = self.root / "changed"
+        shutil.copytree(self.whole, out)
+        shutil.copy(Path(str(self.whole) + ".time.json"), Path(str(out) + ".time.json"))
+        job = json.loads(self.job_path.read_text())
+        job["model"]["slab_m"] = 2 * job["model"]["slab_m"]
+        job["run"].update(steps=40, snapshot_every=20)
+        changed = self.root / "changed_scene.json"
+        changed.write_text(json.dumps(job))
+        self.assertIn("model.slab_m", validate.job_difference(out, job))
+        self.assertIsNone(validate.job_difference(self.whole, self.job))
+        _, log = run_quietly(WORKER, changed, out, 1, True, 1, 1)
+        self.assertIn("holds a run of another job (model.slab_m: ", log)
+        self.assertIn("starting it again", log)
+        self.assertNotIn("reusing", log)
+        snaps = sorted(p.name for p in (out / "snapshots").glob("step_*.h5"))
+        self.assertEqual(snaps[-1], "step_00000040.h5")
+        self.assertNotIn(f"step_{STEPS:08d}.h5", snaps)
+        self.assertIsNone(validate.job_difference(out, job))
 
 
 if __name__ == "__main__":
