@@ -439,10 +439,11 @@ def barchan_laws(rep, T, run_dir, job):
             f"repose angle {repose:g} deg) are judged. The windward slope (reported, not judged) is the "
             f"mean slope from the crest upwind to the toe (measure.windward_slope): field barchans' "
             f"are about 10 deg, their slip face alone at repose."
-            + (" The shape is measured at the scene's step, at which the speeds (sections 1 and 6) no "
-               "longer change when the step is halved but the shape does: halving model.slab_m made "
-               "these dunes about 10% narrower and taller (docs/physical-units.md, 'The step with the "
-               "stress on')." if physical(job) else ""), "")
+            + (" The shape is measured at the scene's step (model.slab_m "
+               f"{job.get('model', {}).get('slab_m', 0.1):g} m): with the shear stress on it is not "
+               "converged in the step, each halving of the step down to 1/160 of the cell making these "
+               "dunes taller and narrower by 5-10% (docs/physical-units.md, 'The step with the stress "
+               "on')." if physical(job) else ""), "")
     rep.add("| dune (y, m) | H (m) | W (m) | H/W | horn offset (m) | horns downwind | slip face | windward slope (deg) |",
             "|---|---|---|---|---|---|---|---|")
     judged, ok_shape = 0, True

@@ -136,7 +136,7 @@ TEST(Resolution, StepIsWarnedOnlyWithTheShearStress) {
   const std::string w = step_warning(spec);
   EXPECT_TRUE(has(w, "model.slab_m = 0.1 m, is more than 1/40 of the cell")) << w;
   EXPECT_TRUE(has(w, "physics.shear_stress_a = 4")) << w;
-  EXPECT_TRUE(has(w, "resolved at model.slab_m <= 0.025 m")) << w;
+  EXPECT_TRUE(has(w, "they stop at model.slab_m <= 0.025 m")) << w;
   const auto all = resolution_warnings(spec);
   ASSERT_FALSE(all.empty());
   EXPECT_EQ(all.back(), w);

@@ -37,7 +37,7 @@ class Scenes(unittest.TestCase):
             r = subprocess.run([ERG, "check", str(p)], capture_output=True, text=True, timeout=60)
         self.assertEqual(r.returncode, 0, r.stderr[-2000:])
         self.assertIn("the step's lift, model.slab_m = 0.05 m", r.stderr)
-        self.assertIn("resolved at model.slab_m <= 0.025 m", r.stderr)
+        self.assertIn("they stop at model.slab_m <= 0.025 m", r.stderr)
 
 
 if __name__ == "__main__":

@@ -166,7 +166,7 @@ std::string step_warning(const erg::v1::JobSpec& spec) {
          "): with the shear stress over relief on (physics.shear_stress_a = " +
          num(physics::sand_of(spec).shear_a) +
          "), windward faces steepen, dunes calve and spread with the step, not only with the "
-         "physics (resolved at model.slab_m <= " +
+         "physics (they stop at model.slab_m <= " +
          metres(largest) + ", with run.steps raised to cover the same time)";
 }
 

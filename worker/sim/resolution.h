@@ -23,9 +23,9 @@
 //
 // One more rule is about the step, not a length: with the shear stress over
 // relief (physical modes, physics.shear_stress_a > 0) a step lifts
-// model.slab_m of sand, and the windward faces' response to the stress
-// changes with that lift until it is at most 1/40 of the cell: above it
-// dunes steepen, calve and spread with the step, not with the physics
+// model.slab_m of sand, and above 1/40 of the cell the windward faces
+// steepen and dunes calve and spread with the step, not with the physics;
+// below it the speeds hardly change with the step, the shapes still do
 // (docs/physical-units.md, "The step with the stress on").
 //
 // The job still runs (these are warnings, not errors): `erg check`, the
@@ -49,8 +49,8 @@ inline constexpr double kReachResolvedCells = 4.0;
 // Cells per sigma of a wind-warping Gaussian (stages/wind_warping.h).
 inline constexpr double kSigmaResolvedCells = 4.0;
 
-// The largest model.slab_m per metre of cell whose results, with the shear
-// stress on, no longer change when the step is halved (measured).
+// The largest model.slab_m per metre of cell at which, with the shear
+// stress on, dunes no longer widen and calve with the step (measured).
 inline constexpr double kSlabPerCellWithStress = 1.0 / 40.0;
 
 // One length the grid does not resolve.
