@@ -90,9 +90,8 @@ def job_difference(out, job):
 
     # validate sets the checkpoints itself (checkpoint_every above), and
     # they are output only.
-    job = {k: v for k, v in job.items()}
-    job["run"] = {k: v for k, v in job.get("run", {}).items() if k != "checkpoint_every"}
-    return walk(job, ran, "")
+    run = {k: v for k, v in job.get("run", {}).items() if k != "checkpoint_every"}
+    return walk(dict(job, run=run), ran, "")
 
 
 def checkpoint_every(job):

@@ -4,8 +4,10 @@ the quick suite is a valid job, and none is warned that its step is too
 large for the shear stress over relief (sim/resolution.h, step_warning):
 a scene whose dunes spread with the step would measure the step, not the
 model (docs/physical-units.md, "The step with the stress on")."""
+import json
 import os
 import subprocess
+import tempfile
 import unittest
 from pathlib import Path
 
@@ -27,8 +29,6 @@ class Scenes(unittest.TestCase):
     def test_a_large_step_with_the_stress_is_warned(self):
         # The check above can fail: the barchan scene with the step it had
         # before is warned, naming the field and the largest slab allowed.
-        import json
-        import tempfile
         job = json.loads((SCENES / "full" / "barchans.json").read_text())
         job["model"]["slab_m"] = 0.05
         with tempfile.TemporaryDirectory() as d:

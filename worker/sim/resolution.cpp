@@ -158,13 +158,14 @@ std::vector<UnresolvedLength> unresolved_lengths(const erg::v1::JobSpec& spec) {
 std::string step_warning(const erg::v1::JobSpec& spec) {
   const double l = spec.domain().cell_size_m();
   const double slab = spec.model().slab_m();
-  if (!(l > 0) || !physics::physical(spec) || !(physics::sand_of(spec).shear_a > 0)) return "";
+  if (!(l > 0) || !physics::physical(spec)) return "";
+  const double a = physics::sand_of(spec).shear_a;
+  if (!(a > 0)) return "";
   const double largest = kSlabPerCellWithStress * l;
   if (slab <= largest * (1 + 1e-9)) return "";
   return "the step's lift, model.slab_m = " + metres(slab) + ", is more than 1/" +
          num(1.0 / kSlabPerCellWithStress) + " of the cell (domain.cell_size_m = " + metres(l) +
-         "): with the shear stress over relief on (physics.shear_stress_a = " +
-         num(physics::sand_of(spec).shear_a) +
+         "): with the shear stress over relief on (physics.shear_stress_a = " + num(a) +
          "), windward faces steepen, dunes calve and spread with the step, not only with the "
          "physics (they stop at model.slab_m <= " +
          metres(largest) + ", with run.steps raised to cover the same time)";
