@@ -26,6 +26,22 @@ class Scenes(unittest.TestCase):
                 self.assertEqual(r.returncode, 0, r.stderr[-2000:])
                 self.assertNotIn("the step's lift", r.stderr)
 
+    def test_the_isotropy_scenes_are_one_scene_in_both_modes(self):
+        # Section 9 compares the two transport modes on the same pile: each
+        # EXPECTED isotropy scene is its STOCHASTIC twin with only the name
+        # and the transport changed, so an edit to one cannot leave the other
+        # behind (docs/dune-forms.md, "EXPECTED at the STOCHASTIC scene's
+        # settings").
+        for angle in (0, 23, 37, 45):
+            with self.subTest(angle=angle):
+                stochastic = json.loads((SCENES / "full" / f"isotropy_{angle:02d}.json").read_text())
+                expected = json.loads((SCENES / "full" / f"isotropy_{angle:02d}_expected.json").read_text())
+                self.assertEqual(stochastic["transport"], "STOCHASTIC")
+                self.assertEqual(expected["transport"], "EXPECTED")
+                self.assertEqual(expected["name"], stochastic["name"] + "-expected")
+                self.assertEqual(dict(expected, name=None, transport=None),
+                                 dict(stochastic, name=None, transport=None))
+
     def test_a_large_step_with_the_stress_is_warned(self):
         # The check above can fail: the barchan scene with the step it had
         # before is warned, naming the field and the largest slab allowed.
