@@ -87,7 +87,7 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
         static_cast<float>(physics::physical_hop_m(sand, m.deposit_on_sand(), l, m.max_hop_m()));
     // The shear stress over relief (Kroy, Sauermann & Herrmann 2002), on the
     // warping's coarse window, whose halo then covers its kernel too.
-    md.shear.on = sand.shear_a > 0.0;
+    md.shear.on = physics::shear_stress_on(spec);
     md.shear.a = static_cast<float>(sand.shear_a);
     md.shear.b = static_cast<float>(sand.shear_b);
     md.shear.radius = shear_stress::kernel_radius(sand.shear_radius_m, md.coarse.cx * l);

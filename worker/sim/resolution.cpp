@@ -135,9 +135,9 @@ std::vector<UnresolvedLength> unresolved_lengths(const erg::v1::JobSpec& spec) {
   }
 
   // The shear-stress kernel, on the warping's coarse cells (sim/model.cpp).
-  if (physics::physical(spec)) {
+  if (physics::shear_stress_on(spec)) {
     const physics::Sand sand = physics::sand_of(spec);
-    if (sand.shear_a > 0 && m.warp_large_radius_m() > 0 && m.warp_small_radius_m() > 0) {
+    if (m.warp_large_radius_m() > 0 && m.warp_small_radius_m() > 0) {
       const int c =
           wind_warping::coarse_factor_of_radii(l, m.warp_large_radius_m(), m.warp_small_radius_m());
       // With one fine cell per coarse cell a finer grid shrinks the coarse
@@ -158,9 +158,8 @@ std::vector<UnresolvedLength> unresolved_lengths(const erg::v1::JobSpec& spec) {
 std::string step_warning(const erg::v1::JobSpec& spec) {
   const double l = spec.domain().cell_size_m();
   const double slab = spec.model().slab_m();
-  if (!(l > 0) || !physics::physical(spec)) return "";
+  if (!(l > 0) || !physics::shear_stress_on(spec)) return "";
   const double a = physics::sand_of(spec).shear_a;
-  if (!(a > 0)) return "";
   const double largest = kSlabPerCellWithStress * l;
   if (slab <= largest * (1 + 1e-9)) return "";
   return "the step's lift, model.slab_m = " + metres(slab) + ", is more than 1/" +

@@ -53,6 +53,10 @@ bool physical(const erg::v1::JobSpec& spec) {
   return physical(spec.wind());
 }
 
+bool shear_stress_on(const erg::v1::JobSpec& spec) {
+  return physical(spec) && sand_of(spec).shear_a > 0.0;
+}
+
 double saturation_length(const Sand& s) {
   constexpr double kAndreotti = 2.2;  // Andreotti, Claudin & Pouliquen 2010
   return s.saturation_length_m > 0 ? s.saturation_length_m : kAndreotti * s.rho_s / s.rho * s.d;

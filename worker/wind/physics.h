@@ -39,6 +39,10 @@ double physical_hop_m(const Sand& s, double deposit_on_sand, double cell_m, doub
 // height) rather than model units.
 bool physical(const erg::v1::WindRegime& w);
 bool physical(const erg::v1::JobSpec& spec);
+// Whether the shear stress over relief (stages/shear_stress.h) runs: in the
+// physical modes with physics.shear_stress_a > 0. The model, the resolution
+// checks and the step warning all ask here.
+bool shear_stress_on(const erg::v1::JobSpec& spec);
 
 // Fluid threshold u_t = A sqrt((rho_s - rho) / rho g d) [Bagnold 1941 ch. 7], m/s.
 double threshold(const Sand& s);
