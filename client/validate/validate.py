@@ -14,6 +14,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -283,6 +284,34 @@ def calibrate(job_path, ratios=None, drift_steps=20000):
 
 
 _SCENE_PATHS = {}
+_RESOLVED = {}
+
+
+def resolved(job):
+    """The job with every default filled in, as the worker runs it (`erg
+    check`), so that no default is repeated here. Cached per scene."""
+    key = job["name"]
+    if key not in _RESOLVED:
+        path = _SCENE_PATHS.get(key)
+        tmp = None
+        if path is None:  # a job not read from a scene file
+            tmp = tempfile.NamedTemporaryFile("w", suffix=".json", delete=False)
+            json.dump(job, tmp)
+            tmp.close()
+            path = tmp.name
+        try:
+            p = subprocess.run([ERG, "check", str(path)], capture_output=True, text=True)
+        finally:
+            if tmp:
+                os.unlink(tmp.name)
+        if p.returncode != 0:
+            raise SystemExit(f"erg validate: erg check {path} failed:\n{p.stderr[-2000:]}")
+        _RESOLVED[key] = json.loads(p.stdout)
+    return _RESOLVED[key]
+
+
+def slab_m(job):
+    return float(resolved(job)["model"]["slab_m"])
 
 
 def flux_of_scene(job):
@@ -292,13 +321,14 @@ def flux_of_scene(job):
         return None
     path = _SCENE_PATHS[job["name"]]
     base = calibrate(path, None, 1)
-    w = job["wind"]
+    r = resolved(job)
+    w = r["wind"]
     speed = float(w["constant"]["speed_mps"])
-    if w.get("speed_is", "").upper() == "WIND_AT_HEIGHT":
-        import math
-        d = float(job.get("physics", {}).get("grain_diameter_m", 0.00025))
-        z0 = float(w.get("roughness_m", 0)) or d / 30.0
-        speed *= 0.4 / math.log(float(w.get("height_m", 10)) / z0)
+    if w["speed_is"] == "WIND_AT_HEIGHT":
+        ph = r["physics"]
+        d = float(ph["grain_diameter_m"])
+        z0 = float(w["roughness_m"]) or d / 30.0  # 0: d / 30 (job.proto, roughness_m)
+        speed *= float(ph["von_karman"]) / math.log(float(w["height_m"]) / z0)
     ratio = speed / base["threshold_mps"]
     f = calibrate(path, f"{ratio:.9g}", 1)["flux"][0]
     return f["sim_m2_per_s"] * YEAR_S
@@ -439,7 +469,7 @@ def barchan_laws(rep, T, run_dir, job):
             f"mean slope from the crest upwind to the toe (measure.windward_slope): field barchans' "
             f"are about 10 deg, their slip face alone at repose."
             + (" The shape is measured at the scene's step (model.slab_m "
-               f"{job.get('model', {}).get('slab_m', 0.1):g} m): with the shear stress on it is not "
+               f"{slab_m(job):g} m): with the shear stress on it is not "
                "converged in the step, each halving of the step down to 1/160 of the cell making these "
                "dunes taller and narrower by 5-10% (docs/physical-units.md, 'The step with the stress "
                "on')." if physical(job) else ""), "")
@@ -810,7 +840,7 @@ def isotropy_law(rep, T, scenes):
     rep.add("The same sand pile on a non-erodible flat bed under the same wind, blowing at "
             + ", ".join(sorted({f"{wind_of(j):g}" for _, _, j in scenes}, key=float))
             + " deg to the grid's x axis, in each transport mode ("
-            + "; ".join(f"{m}: a wind {wind_text(j)}, slabs of {j.get('model', {}).get('slab_m', 0.1):g} m"
+            + "; ".join(f"{m}: a wind {wind_text(j)}, slabs of {slab_m(j):g} m"
                         for m, j in sorted(modes.items())) + "). The pile "
             f"(all sand thicker than {det['dune_sand_threshold_m']} m: the pile, or the barchans it "
             "calves) is tracked by its sand-weighted centroid, unwrapped on the torus, over the last "
@@ -927,7 +957,7 @@ def describe_layers(job):
     d = job["domain"]
     sand = job["layers"]["sand"]
     parts = [f"{d['nx']} x {d['ny']} cells of {d['cell_size_m']:g} m, {job['run']['steps']} steps, "
-             f"{job.get('transport', 'EXPECTED')} with slabs of {job.get('model', {}).get('slab_m', 0.1):g} m"]
+             f"{job.get('transport', 'EXPECTED')} with slabs of {slab_m(job):g} m"]
     if "constant" in sand:
         u = sand.get("uniform", {})
         parts.append(f"a bed of {sand['constant']:g} m of sand"
