@@ -461,6 +461,7 @@ class TransverseSection(unittest.TestCase):
         import tempfile
         from pathlib import Path
         import validate as V
+        V.ERG = os.environ["ERG_BIN"]  # the job's defaults come from `erg check`
         T = json.loads(Path(os.path.dirname(M.__file__), "thresholds.json").read_text())
         job = {"wind": {"constant": {"speed_mps": 5, "direction_deg": 0}}}
         scenes = [(f"t{cell:g}", {"sand": h, "bedrock": np.zeros_like(h), "cell_size_m": cell, "step": 2500}, job)
@@ -500,6 +501,7 @@ class OrientationSection(unittest.TestCase):
         import tempfile
         from pathlib import Path
         import validate as V
+        V.ERG = os.environ["ERG_BIN"]  # the job's defaults come from `erg check`
         T = json.loads(Path(os.path.dirname(M.__file__), "thresholds.json").read_text())
 
         def job(name, theta, n, transport="EXPECTED", sand=None):
