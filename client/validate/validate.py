@@ -1012,7 +1012,11 @@ def orientation_law(rep, T, scenes):
             "lattice column gives the largest gap between them within the tolerance of the "
             f"prediction: a bed is judged where it is at most {0.5 * tol:g} deg, UNRESOLVED elsewhere "
             "unless its crests lie farther from the prediction than the lattice alone can move them. "
-            "Fingers are single bodies, not bound to the lattice.", "")
+            "Fingers are single bodies, not bound to the lattice. The bed-instability mode is that of "
+            "an erodible bed, sand everywhere (Courrech du Pont, Narteau & Gao 2014; Gao et al. 2015 "
+            "map how the orientation moves towards the fingering mode as the sand runs out): a bed "
+            "with bare rock in any snapshot is sand-limited, so it is no test of the mode and FAILs "
+            "as a scene.", "")
     rep.add("| scene | transport | mode | theta (deg) | N | predicted (deg) | other mode's (deg) "
             "| measured (deg) | difference (deg) | pattern | also measured | lattice gap (deg) | verdict |",
             "|---|---|---|---|---|---|---|---|---|---|---|---|---|")
@@ -1034,10 +1038,17 @@ def orientation_law(rep, T, scenes):
             pattern = (f"relief {relief(first):.1f} -> {relief(last):.1f} m, coherence "
                        f"{co['coherence']:.2f}, wavelength {co['wavelength_m']:.0f} m")
             also = f"spectrum {co['spectrum_deg']:.1f}"
+            # The mode's premise: sand everywhere (an erodible bed). Bare
+            # rock in any snapshot makes the bed sand-limited, between the
+            # two modes, so it is no test of this one.
+            bare = max(float((s["sand"] <= 0.0).mean()) for s in snaps)
+            if bare > 0.0:
+                pattern += f"; bare rock in up to {100 * bare:.1f}% of the bed: sand ran out"
             ny, nx = height.shape
             lattice = M.orientation_resolution(co["wavelength_m"], nx * cell, ny * cell, pred, tol)
         else:
             pred, other = finger_pred, bed_pred
+            bare = 0.0
             # The dunes: sand thicker than the detection threshold (the
             # saltating sheet between them has streaks of its own).
             thick = np.where(last["sand"] > det["dune_sand_threshold_m"], last["sand"], 0.0)
@@ -1051,7 +1062,7 @@ def orientation_law(rep, T, scenes):
                     if bodies["measured"] else f"bodies: none elongated ({bodies['bodies']} found)")
             lattice = None
         diff = M.axis_difference(measured, pred)
-        if not formed:
+        if not formed or bare > 0.0:
             ok = False
         elif lattice is None or lattice["gap_deg"] <= 0.5 * tol:
             ok = diff <= tol
@@ -1060,7 +1071,7 @@ def orientation_law(rep, T, scenes):
             ok = None if diff <= lattice["lattice_tolerance_deg"] else False
         row = {"name": job["name"], "mode": mode, "transport": job.get("transport", "EXPECTED"),
                "theta": theta, "n": n, "primary": primary, "pred": pred, "other": other, "measured": measured,
-               "diff": diff, "formed": formed, "ok": ok, "height": height, "cell": cell,
+               "diff": diff, "formed": formed, "bare": bare, "ok": ok, "height": height, "cell": cell,
                "step": last["step"], "lattice": lattice}
         rows.append(row)
         gap = ("-" if lattice is None else f"{lattice['gap_deg']:.1f} (nearest admissible "
@@ -1079,12 +1090,16 @@ def orientation_law(rep, T, scenes):
                     + ", ".join(f"{r['diff']:.1f}" for r in rs) + f" deg (allowed {tol:g})"
                     + ("" if all(r["formed"] for r in rs) else
                        "; no pattern in " + ", ".join(r["name"] for r in rs if not r["formed"]))
+                    + ("" if not any(r["bare"] > 0 for r in rs) else
+                       "; the sand ran out (bare rock) in " + ", ".join(r["name"] for r in rs if r["bare"] > 0))
                     + ("" if not unresolved else
                        "; the torus does not resolve the tolerance in " + ", ".join(unresolved)) + ".", "")
             rep.law(f"Two-wind orientation, {title} ({transport})", ok,
                     f"worst {worst:.1f} deg from the prediction over {len(rs)} scenes (allowed {tol:g})"
                     + ("" if all(r["formed"] for r in rs) else
                        f"; {sum(not r['formed'] for r in rs)} without a pattern")
+                    + ("" if not any(r["bare"] > 0 for r in rs) else
+                       f"; {sum(r['bare'] > 0 for r in rs)} whose bed went bare")
                     + ("" if not unresolved else f"; {len(unresolved)} on a torus too small to resolve it"))
     # Orientation against divergence: predictions for the scenes' flux ratios, measured points.
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.8))

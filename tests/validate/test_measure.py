@@ -570,6 +570,17 @@ class OrientationSection(unittest.TestCase):
         self.assertRegex(row, r"\| 74\.0 \| 0\.3 \|.*\| 7\.8 \(nearest admissible 74\.1; can move it [0-9.]+\) "
                               r"\| UNRESOLVED \|$")
         self.assertEqual([ok for _, ok, _ in rep.summary], [None])
+        # The resolved ridges at the prediction, but with bare rock in their
+        # troughs: a sand-limited bed is no test of the bed-instability mode.
+        bare = np.maximum(big - 1.5, 0.0)
+        with tempfile.TemporaryDirectory() as tmp:
+            rep = V.Report(Path(tmp))
+            V.orientation_law(rep, T, [("orientation_bed_120_2", [snap(bflat, 0, 2.0), snap(bare, 400, 2.0)],
+                                        bjob)])
+        row = [l for l in rep.lines if l.startswith("| bed-ok")][0]
+        self.assertRegex(row, r"\| 73\.7 \| 39\.2 \| 7[34]\.\d \| 0\.\d \|.*bare rock in up to [0-9.]+% of the bed: "
+                              r"sand ran out.*\| FAIL \|$")
+        self.assertEqual([ok for _, ok, _ in rep.summary], [False])
 
 
 if __name__ == "__main__":
