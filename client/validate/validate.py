@@ -720,6 +720,7 @@ def transverse_law(rep, T, scenes):
         # crests lie across it) and for crests perpendicular to it.
         along = (nx if abs(math.cos(math.radians(wind))) >= abs(math.sin(math.radians(wind))) else ny) * cell
         res.append({"name": name, "cell": cell, "h": h, "o": o, "sp": sp, "step": snap["step"],
+                    "bare": float((snap["sand"] <= 0.0).mean()),
                     "angle": M.crest_wind_angle(o["crest_deg"], wind),
                     "spec_angle": M.crest_wind_angle((sp["wavevector_deg"] + 90) % 180, wind),
                     "spacing": M.wavelength_resolution(sp["wavelength_m"], along),
@@ -727,9 +728,13 @@ def transverse_law(rep, T, scenes):
                                                         (wind + 90.0) % 180.0, R["angle_tolerance_deg"])})
     c = res[0]
     ny, nx = c["h"].shape
-    rep.add(f"The same {nx * c['cell']:g} m x {ny * c['cell']:g} m torus of abundant sand (2.5-3.5 m, "
-            f"random), one wind towards {wind_of(scenes[0][2]):g} deg, at "
+    sand = describe_sand(scenes[0][2])
+    rep.add(f"The same {nx * c['cell']:g} m x {ny * c['cell']:g} m torus of sand"
+            + (f" ({sand})" if sand else "")
+            + f", one wind towards {wind_of(scenes[0][2]):g} deg, at "
             + ", ".join(f"{r['cell']:g} m" for r in res) + f" cells; final snapshots (step {c['step']}). "
+            "Transverse dunes are those of an erodible bed, sand everywhere: the share of bare rock "
+            "is listed. "
             "Crest orientation from the structure tensor of the height gradient (coherence 1: "
             "parallel ridges), and from the peak of the 2-D power spectrum; wavelength = 1 / "
             "power-weighted mean |k| over the dominant band (|k| within a factor 2 of the "
@@ -741,13 +746,13 @@ def transverse_law(rep, T, scenes):
             "at most half its tolerance, and is UNRESOLVED elsewhere unless the measurement lies "
             "beyond what the lattice alone can move it to (then it FAILs).", "")
     rep.add("| cells | crest-wind angle, tensor (deg) | coherence | crest-wind angle, spectrum (deg) "
-            "| wavelength (m) | spectral peak (m) | lattice: wavelength spacing | lattice: crest gap (deg) |",
-            "|---|---|---|---|---|---|---|---|")
+            "| wavelength (m) | spectral peak (m) | lattice: wavelength spacing | lattice: crest gap (deg) "
+            "| bare rock |", "|---|---|---|---|---|---|---|---|---|")
     for r in res:
         rep.add(f"| {r['cell']:g} m | {r['angle']:.1f} | {r['o']['coherence']:.2f} | "
                 f"{r['spec_angle']:.1f} | {r['sp']['wavelength_m']:.1f} | "
                 f"{r['sp']['peak_wavelength_m']:.1f} | {100 * r['spacing']:.1f}% | "
-                f"{r['lattice']['gap_deg']:.1f} |")
+                f"{r['lattice']['gap_deg']:.1f} | {100 * r['bare']:.1f}% |")
     rep.add("")
     tol_a = R["angle_tolerance_deg"]
     lo = R["expected_crest_wind_angle_deg"] - tol_a
@@ -953,11 +958,16 @@ def orientation_case(job):
 
 
 def describe_layers(job):
-    """The initial sand and its sources, in words, for the report."""
+    """The domain, the run and the initial sand, in words, for the report."""
     d = job["domain"]
-    sand = job["layers"]["sand"]
-    parts = [f"{d['nx']} x {d['ny']} cells of {d['cell_size_m']:g} m, {job['run']['steps']} steps, "
-             f"{job.get('transport', 'EXPECTED')} with slabs of {slab_m(job):g} m"]
+    return (f"{d['nx']} x {d['ny']} cells of {d['cell_size_m']:g} m, {job['run']['steps']} steps, "
+            f"{job.get('transport', 'EXPECTED')} with slabs of {slab_m(job):g} m, " + describe_sand(job))
+
+
+def describe_sand(job):
+    """The initial sand and its sources, in words, for the report."""
+    sand = job.get("layers", {}).get("sand", {})
+    parts = []
     if "constant" in sand:
         u = sand.get("uniform", {})
         parts.append(f"a bed of {sand['constant']:g} m of sand"
