@@ -462,6 +462,12 @@ def orientation_resolution(wavelength_m, lx_m, ly_m, predicted_deg, tolerance_de
 
 # --- mass ------------------------------------------------------------------------
 
+def bare_fraction(sand):
+    """The share of cells with no sand at all (bare rock): the exact integer
+    sand makes 0.0 exact, so no threshold is needed."""
+    return float((np.asarray(sand) <= 0.0).mean())
+
+
 def sand_total_units(snap):
     """Sand on the ground plus in saltation, exact (Python int)."""
     return snap["sand_units_total"] + snap["airborne_units_total"]

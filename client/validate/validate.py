@@ -720,7 +720,7 @@ def transverse_law(rep, T, scenes):
         # crests lie across it) and for crests perpendicular to it.
         along = (nx if abs(math.cos(math.radians(wind))) >= abs(math.sin(math.radians(wind))) else ny) * cell
         res.append({"name": name, "cell": cell, "h": h, "o": o, "sp": sp, "step": snap["step"],
-                    "bare": float((snap["sand"] <= 0.0).mean()),
+                    "bare": M.bare_fraction(snap["sand"]),
                     "angle": M.crest_wind_angle(o["crest_deg"], wind),
                     "spec_angle": M.crest_wind_angle((sp["wavevector_deg"] + 90) % 180, wind),
                     "spacing": M.wavelength_resolution(sp["wavelength_m"], along),
@@ -1051,7 +1051,7 @@ def orientation_law(rep, T, scenes):
             # The mode's premise: sand everywhere (an erodible bed). Bare
             # rock in any snapshot makes the bed sand-limited, between the
             # two modes, so it is no test of this one.
-            bare = max(float((s["sand"] <= 0.0).mean()) for s in snaps)
+            bare = max(M.bare_fraction(s["sand"]) for s in snaps)
             if bare > 0.0:
                 pattern += f"; bare rock in up to {100 * bare:.1f}% of the bed: sand ran out"
             ny, nx = height.shape
