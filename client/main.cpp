@@ -82,9 +82,11 @@ const CommandUsage kUsage[] = {
      "                       ERA5 netCDF u10/v10) as {\"wind\": ...} for a job: a series (or\n"
      "                       a rose); prints its rose and DP/RDP/RDD, draws the sand rose\n"},
     {"validate",
-     "  erg validate --out DIR [--quick] [--threads T] [--reuse]\n"
+     "  erg validate --out DIR [--quick] [--threads T] [--reuse] [--skip GLOB]...\n"
      "                       run the geomorphology scenes, write DIR/report.md (laws, plots);\n"
-     "                       --reuse keeps DIR's runs and resumes interrupted ones\n"},
+     "                       --reuse keeps DIR's runs and resumes interrupted ones;\n"
+     "                       --skip leaves out the scenes matching GLOB (e.g. 'transverse_fin*'),\n"
+     "                       and the laws that need them read NOT RUN\n"},
     {"submit",
      "  erg submit JOB.json [--watch] [--key IDEMPOTENCY_KEY] [--steps N] [--snapshot-every K]\n"
      "             [--checkpoint-every C] [--ranks P] [--threads T]\n"

@@ -8,6 +8,7 @@ pass or fail and by how much) and PNG plots. Thresholds: thresholds.json.
 Usually started by `erg validate --out DIR [--quick]`, which passes --worker.
 """
 import argparse
+import fnmatch
 import json
 import math
 import os
@@ -208,10 +209,17 @@ def snapshots(run_dir):
 
 # --- laws -------------------------------------------------------------------------------
 
+# A law whose scenes were left out of this invocation (--skip).
+NOT_RUN = "not run"
+
+
 def verdict(ok):
-    """PASS, FAIL, or (ok None) UNRESOLVED: the scene's periodic domain
-    cannot resolve the law's tolerance (measure.wavelength_resolution,
-    measure.orientation_resolution)."""
+    """PASS, FAIL, (ok None) UNRESOLVED: the scene's periodic domain cannot
+    resolve the law's tolerance (measure.wavelength_resolution,
+    measure.orientation_resolution), or (ok NOT_RUN) NOT RUN: some of the
+    law's scenes were skipped."""
+    if ok is NOT_RUN:
+        return "**NOT RUN**"
     return "**UNRESOLVED**" if ok is None else ("**PASS**" if ok else "**FAIL**")
 
 
@@ -824,8 +832,9 @@ def transverse_law(rep, T, scenes):
             + f"; lattice gap near it {max(r['lattice']['gap_deg'] for r in res):.1f} deg "
             + f"(resolves {tol_a:g} deg at <= {0.5 * tol_a:g})")
     rep.law("Transverse wavelength resolution-independent", ok_wl,
-            "change " + ", ".join(f"{100 * ch:.1f}%" for ch in changes)
-            + " per halving (" + " -> ".join(f"{r['cell']:g}" for r in res) + " m; allowed < "
+            ("change " + ", ".join(f"{100 * ch:.1f}%" for ch in changes) + " per halving"
+             if changes else "one cell size, no halving")
+            + " (" + " -> ".join(f"{r['cell']:g}" for r in res) + " m; allowed < "
             + f"{100 * tol:g}%); lattice spacing " + ", ".join(f"{100 * r['spacing']:.0f}%" for r in res)
             + f" (resolves at <= {100 * 0.5 * tol:g}%)")
 
@@ -1176,6 +1185,64 @@ def mass_law(rep, T, runs):
     rep.law("Mass conserved exactly", ok, "exact" if ok else "drift")
 
 
+def law_scenes(names, jobs):
+    """Each law measured on runs, with its section and the scenes (file
+    names) it needs: a law is judged only on all of them. The flux and
+    drift laws need no run (erg calibrate), and mass is a law of each scene
+    on its own, judged over the scenes that ran."""
+    trans = [n for n in names if n.startswith("transverse")]
+    laws = {
+        "Barchan speed c = a Q / (H + H0)": ("1. Barchan migration speed against height", ["barchans"]),
+        "Barchan H/W ~ 0.1, horns downwind": ("2. Barchan shape", ["barchans"]),
+        "Slip faces at repose": ("3. Slip faces", ["barchans"] + trans),
+        "Transverse crests perpendicular": ("4. Transverse dunes", trans),
+        "Transverse wavelength resolution-independent": ("4. Transverse dunes", trans),
+        "Migration rate against Tarfaya": ("6. Migration rate in physical units", ["barchans"]),
+    }
+    for n in names:
+        transport = jobs[n].get("transport", "EXPECTED")
+        if n.startswith("isotropy"):
+            law = (f"Isotropy: pile migrates with the wind ({transport})",
+                   "9. Isotropy: a pile's migration at any angle to the grid")
+        elif n.startswith("orientation_"):
+            title = "bed instability" if n.startswith("orientation_bed") else "fingering"
+            law = (f"Two-wind orientation, {title} ({transport})", "10. Dune orientation under two winds")
+        else:
+            continue
+        laws.setdefault(law[0], (law[1], []))[1].append(n)
+    return laws
+
+
+def mark_not_run(rep, laws, skipped, jobs):
+    """Every law with a skipped scene reads NOT RUN, whatever the scenes that
+    ran measured (listed after it): a law is stated over all its scenes. A
+    law none of whose scenes ran gets its section with the reason."""
+    present = {name: i for i, (name, _, _) in enumerate(rep.summary)}
+    sections = {line for line in rep.lines if line.startswith("## ")}
+    noted = {}
+    for law, (section, scenes) in laws.items():
+        missing = [jobs[n]["name"] for n in scenes if n in skipped]
+        if not missing:
+            continue
+        why = "not run: " + ", ".join(missing)
+        if law in present:
+            name, _, measured = rep.summary[present[law]]
+            rep.summary[present[law]] = (name, NOT_RUN, f"{measured}; {why}")
+            # Said at the top of the section, above the verdicts of the scenes that ran.
+            at = rep.lines.index(f"## {section}") + 2 + 2 * noted.get(section, 0)
+            noted[section] = noted.get(section, 0) + 1
+            rep.lines[at:at] = [f"{law}: {verdict(NOT_RUN)}: its scenes {', '.join(missing)} were left "
+                                "out of this invocation (`--skip`); the verdicts below are of the scenes "
+                                "that ran.", ""]
+            continue
+        rep.law(law, NOT_RUN, why)
+        if f"## {section}" not in sections:
+            sections.add(f"## {section}")
+            rep.add(f"## {section}", "")
+        rep.add(f"{law}: {verdict(NOT_RUN)}: its scenes {', '.join(missing)} were left out of this "
+                "invocation (`--skip`).", "")
+
+
 def main():
     ap = argparse.ArgumentParser(prog="erg validate")
     ap.add_argument("--out", required=True)
@@ -1186,6 +1253,9 @@ def main():
     ap.add_argument("--reuse", action="store_true", help="reuse the runs already in OUT/runs: complete ones as they are, "
                     "interrupted ones resumed from their newest checkpoint")
     ap.add_argument("--scenes", default=None, help="folder of scene jobs (default: scenes/full or scenes/quick)")
+    ap.add_argument("--skip", action="append", default=[], metavar="GLOB",
+                    help="leave out the scenes whose file name (without .json) matches GLOB; "
+                         "the laws that need them read NOT RUN")
     a = ap.parse_args()
     global ERG
     ERG = a.erg
@@ -1203,30 +1273,41 @@ def main():
         jobs[name] = json.loads(jp.read_text())
         _SCENE_PATHS[jobs[name]["name"]] = jp
         dirs[name] = out / "runs" / jobs[name]["name"]
-    for i, name in enumerate(sorted(names, key=lambda n: scene_cost(jobs[n])), start=1):
+    skipped = sorted(n for n in names if any(fnmatch.fnmatchcase(n, g) for g in a.skip))
+    for g in a.skip:
+        if not any(fnmatch.fnmatchcase(n, g) for n in names):
+            raise SystemExit(f"erg validate: --skip {g} matches no scene of {scene_dir} "
+                             f"(scenes: {', '.join(sorted(names))})")
+    torun = [n for n in names if n not in skipped]
+    for i, name in enumerate(sorted(torun, key=lambda n: scene_cost(jobs[n])), start=1):
         timings[name] = run_scene(a.worker, scene_dir / f"{name}.json", dirs[name], a.threads,
-                                  a.reuse, i, len(names))
+                                  a.reuse, i, len(torun))
     log("measuring")
     rep = Report(out)
-    rows, bsnaps, repose = barchan_laws(rep, T, dirs["barchans"], jobs["barchans"])
-    tnames = [n for n in names if n.startswith("transverse")]
+    ran = [n for n in names if n not in skipped]
+    if "barchans" in ran:
+        rows, bsnaps, repose = barchan_laws(rep, T, dirs["barchans"], jobs["barchans"])
+    tnames = [n for n in ran if n.startswith("transverse")]
     ts = {n: snapshots(dirs[n]) for n in tnames}
-    finals = [(jobs["barchans"]["name"], bsnaps[-1])] + [(jobs[n]["name"], ts[n][-1]) for n in ts]
-    slip_face_law(rep, T, bsnaps, finals, repose, jobs["barchans"])
-    transverse_law(rep, T, [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in tnames])
-    inames = [n for n in names if n.startswith("isotropy")]
+    if "barchans" in ran:
+        finals = [(jobs["barchans"]["name"], bsnaps[-1])] + [(jobs[n]["name"], ts[n][-1]) for n in ts]
+        slip_face_law(rep, T, bsnaps, finals, repose, jobs["barchans"])
+    if tnames:
+        transverse_law(rep, T, [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in tnames])
+    inames = [n for n in ran if n.startswith("isotropy")]
     isnaps = {n: snapshots(dirs[n]) for n in inames}
     if inames:
         isotropy_law(rep, T, [(jobs[n]["name"], isnaps[n], jobs[n]) for n in inames])
-    onames = [n for n in names if n.startswith("orientation_")]
+    onames = [n for n in ran if n.startswith("orientation_")]
     osnaps = {n: snapshots(dirs[n]) for n in onames}
     if onames:
         orientation_law(rep, T, [(n, osnaps[n], jobs[n]) for n in onames])
-    mass_law(rep, T, [(jobs["barchans"]["name"], bsnaps, jobs["barchans"])] +
+    mass_law(rep, T, ([(jobs["barchans"]["name"], bsnaps, jobs["barchans"])] if "barchans" in ran else []) +
              [(jobs[n]["name"], ts[n], jobs[n]) for n in ts] +
              [(jobs[n]["name"], isnaps[n], jobs[n]) for n in inames] +
              [(jobs[n]["name"], osnaps[n], jobs[n]) for n in onames])
-    migration_law(rep, T, rows, jobs["barchans"])
+    if "barchans" in ran:
+        migration_law(rep, T, rows, jobs["barchans"])
     bjob = jobs["barchans"]
     flux_law(rep, T, calibrate(scene_dir / "barchans.json", None, 1) if physical(bjob) else None, bjob)
     rose = scene_dir / "drift_rose.json"
@@ -1234,12 +1315,14 @@ def main():
     drift_law(rep, T, calibrate(rose, None, int(rjob["run"]["steps"])) if rjob else None,
               rjob["name"] if rjob else "")
 
+    mark_not_run(rep, law_scenes(names, jobs), skipped, jobs)
     # Sections in the order of the report; the body was written in measurement order.
     body = "\n".join(rep.lines)
     parts = ["## " + p for p in body.split("## ") if p.strip()]
     body = "\n".join(sorted(parts, key=lambda p: int(p[3:p.index(".")])))
     passed = sum(1 for _, ok, _ in rep.summary if ok is True)
     unresolved = sum(1 for _, ok, _ in rep.summary if ok is None)
+    not_run = sum(1 for _, ok, _ in rep.summary if ok is NOT_RUN)
     meta = [
         f"# erg validation report ({suite} suite)", "",
         f"Generated by `erg validate{' --quick' if a.quick else ''}` "
@@ -1248,11 +1331,13 @@ def main():
         f"`client/validate/thresholds.json`, measurements in `client/validate/measure.py`). "
         "Simulation wall time on this machine: "
         + ", ".join(f"{jobs[n]['name']} " + (f"{timings[n]:.0f} s" if timings[n] is not None else "?")
-                    for n in names)
+                    for n in ran)
         + (f" ({sum(timings.values()):.0f} s in all)" if None not in timings.values() else "")
         + (" (runs reused from an earlier invocation)" if a.reuse else "") + ".", "",
         f"**{passed} of {len(rep.summary)} laws pass.**"
-        + (f" {unresolved} cannot be judged on their scenes' tori (UNRESOLVED)." if unresolved else ""), "",
+        + (f" {unresolved} cannot be judged on their scenes' tori (UNRESOLVED)." if unresolved else "")
+        + (f" {not_run} NOT RUN: their scenes were left out of this invocation (--skip: "
+           + ", ".join(jobs[n]["name"] for n in skipped) + ")." if not_run else ""), "",
         "| law | result | measured |", "|---|---|---|",
     ]
     for name, ok, measured in rep.summary:
@@ -1262,7 +1347,8 @@ def main():
     tmp = out / "report.md.tmp"
     tmp.write_text(text)
     os.replace(tmp, out / "report.md")
-    log(f"{passed} of {len(rep.summary)} laws pass; report in {out / 'report.md'} "
+    log(f"{passed} of {len(rep.summary)} laws pass"
+        + (f" ({not_run} not run)" if not_run else "") + f"; report in {out / 'report.md'} "
         f"({time.time() - t_start:.0f} s)")
     return 0
 

@@ -116,6 +116,48 @@ class Quick(unittest.TestCase):
         self.assertNotEqual(p.returncode, 0)
         self.assertIn("exists; choose a new --out or pass --reuse", p.stderr)
 
+    def test_skipped_scenes_leave_their_laws_not_run(self):
+        """--skip leaves scenes out (the full suite's largest take hours): every
+        law that needs one reads NOT RUN, never PASS on the scenes that ran,
+        and the others are judged as in a whole run."""
+        import shutil
+        out = Path(self.tmp.name) / "skipped"
+        shutil.copytree(self.out / "runs", out / "runs")
+        p = subprocess.run([ERG, "validate", "--out", str(out), "--quick", "--reuse",
+                            "--skip", "transverse_fine"], capture_output=True, text=True, timeout=120)
+        self.assertEqual(p.returncode, 0, p.stderr[-3000:])
+        self.assertIn("[1/2]", p.stderr)
+        self.assertNotIn("validate-transverse-1m-quick", p.stderr)
+        report = (out / "report.md").read_text()
+        summary = {}
+        for line in report.split("\n## ")[0].splitlines():
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if len(cells) == 3 and cells[1] in ("PASS", "FAIL", "UNRESOLVED", "NOT RUN"):
+                summary[cells[0]] = cells[1:]
+        full = {}
+        for line in self.report.split("\n## ")[0].splitlines():
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            if len(cells) == 3 and cells[1] in ("PASS", "FAIL", "UNRESOLVED"):
+                full[cells[0]] = cells[1:]
+        self.assertEqual(set(summary), set(full))
+        needs_fine = ("Slip faces at repose", "Transverse crests perpendicular",
+                      "Transverse wavelength resolution-independent")
+        for law, (result, measured) in summary.items():
+            if law in needs_fine:
+                self.assertEqual(result, "NOT RUN", law)
+                self.assertIn("not run: validate-transverse-1m-quick", measured)
+            else:
+                self.assertEqual([result, measured], full[law], law)
+        self.assertRegex(report, r"3 NOT RUN: their scenes were left out of this invocation "
+                                 r"\(--skip: validate-transverse-1m-quick\)")
+        transverse = report.split("## 4. Transverse dunes")[1].split("\n## ")[0]
+        self.assertIn("Transverse wavelength resolution-independent: **NOT RUN**", transverse)
+        # A pattern that names no scene is an error, not a silent full run.
+        p = subprocess.run([ERG, "validate", "--out", str(out), "--quick", "--reuse",
+                            "--skip", "transverse_finer"], capture_output=True, text=True, timeout=60)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--skip transverse_finer matches no scene", p.stderr)
+
     def test_thresholds_have_sources(self):
         import json
         src = Path(os.environ["ERG_SOURCE_DIR"]) / "client" / "validate" / "thresholds.json"
