@@ -25,10 +25,11 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import measure as M  # noqa: E402
 
-# The scenes every suite has; transverse_finest (a third resolution) is run
-# when the suite's folder holds it.
+# The scenes every suite has; transverse_finest (a third resolution) and
+# barchans_expected (the barchans in the other transport mode) are run when
+# the suite's folder holds them.
 SCENES = ("barchans", "transverse_coarse", "transverse_fine")
-OPTIONAL = ("transverse_finest",)
+OPTIONAL = ("transverse_finest", "barchans_expected")
 # One pile under the same wind at angles to the grid (section 9); run when
 # the suite's folder holds them, in each transport mode it has.
 ISOTROPY = tuple(f"isotropy_{a:02d}{m}" for m in ("", "_expected") for a in (0, 23, 37, 45))
@@ -241,10 +242,12 @@ def fmt(x, nd=3):
 
 
 class Report:
-    def __init__(self, out):
+    def __init__(self, out, plot_suffix=""):
         self.out = out
         self.lines = []
         self.summary = []  # (law, verdict, one-line measured)
+        # Told apart in plots/ when a law is measured on one scene per transport mode.
+        self.plot_suffix = plot_suffix
 
     def add(self, *lines):
         self.lines.extend(lines)
@@ -253,6 +256,8 @@ class Report:
         """Writes the figure to plots/NAME and links it here."""
         import matplotlib.pyplot as plt
         fig.tight_layout()
+        if self.plot_suffix:
+            name = name.replace(".png", f"{self.plot_suffix}.png")
         fig.savefig(plot_path(self.out, name), dpi=dpi)
         plt.close(fig)
         self.add(f"![{alt}](plots/{name})", "")
@@ -448,7 +453,7 @@ def barchan_laws(rep, T, run_dir, job):
         ax.set_xlabel("dune height H (m)")
         ax.set_ylabel("migration speed (m/yr)")
         ax.legend(fontsize=7)
-        ax.set_title("Barchan speed against height")
+        ax.set_title(f"Barchan speed against height ({job.get('transport', 'EXPECTED')})")
         rep.plot(fig, "barchan_speed.png", "barchan speed", dpi=110)
         rep.law("Barchan speed c = a Q / (H + H0)", ok_speed,
                 f"slope {slope:.2f} over H >= {S['min_height_m']:g} m (expected -1 +/- {S['tolerance']:g}); "
@@ -521,7 +526,7 @@ def barchan_laws(rep, T, run_dir, job):
     fig.colorbar(im, ax=ax, label="sand (m)", shrink=0.8)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"Barchans at step {last['step']} (+: centroids)")
+    ax.set_title(f"Barchans at step {last['step']}, {job.get('transport', 'EXPECTED')} (+: centroids)")
     rep.plot(fig, "barchans.png", "barchans", dpi=110)
     rep.add(f"Source: {B['source']}.", "")
 
@@ -576,6 +581,7 @@ def migration_law(rep, T, rows, job):
     ax.plot(w, [r["v_yr"] for r in rows], "o", label="erg")
     ax.set_xlabel("dune width W (m)")
     ax.set_ylabel("migration (m/yr)")
+    ax.set_title(f"Migration against Tarfaya ({job.get('transport', 'EXPECTED')})")
     ax.legend(fontsize=7)
     rep.plot(fig, "migration_rate.png", "migration rate", dpi=110)
     rep.add(f"Source: {R['source']}.", "")
@@ -1185,22 +1191,54 @@ def mass_law(rep, T, runs):
     rep.law("Mass conserved exactly", ok, "exact" if ok else "drift")
 
 
+def merge_by_transport(rep, subs):
+    """subs: (job, Report) of the same sections measured on one scene per
+    transport mode. Each section gets its heading once and each scene's part
+    under its mode; each law is named with its mode."""
+    order, parts = [], {}
+    for job, sub in subs:
+        head = None
+        for line in sub.lines:
+            if line.startswith("## "):
+                head = line
+                if head not in parts:
+                    order.append(head)
+                    parts[head] = []
+                parts[head].append((job, []))
+            elif head is not None:
+                parts[head][-1][1].append(line)
+        for name, ok, measured in sub.summary:
+            rep.law(f"{name} ({job.get('transport', 'EXPECTED')})", ok, measured)
+    for head in order:
+        rep.add(head, "")
+        for job, lines in parts[head]:
+            if len(subs) > 1:
+                rep.add(f"**{job.get('transport', 'EXPECTED')} transport** (scene `{job['name']}`):", "")
+            while lines and not lines[0]:
+                lines = lines[1:]
+            rep.add(*lines)
+
+
 def law_scenes(names, jobs):
     """Each law measured on runs, with its section and the scenes (file
     names) it needs: a law is judged only on all of them. The flux and
     drift laws need no run (erg calibrate), and mass is a law of each scene
     on its own, judged over the scenes that ran."""
     trans = [n for n in names if n.startswith("transverse")]
+    barchans = [n for n in names if n.startswith("barchans")]
     laws = {
-        "Barchan speed c = a Q / (H + H0)": ("1. Barchan migration speed against height", ["barchans"]),
-        "Barchan H/W ~ 0.1, horns downwind": ("2. Barchan shape", ["barchans"]),
-        "Slip faces at repose": ("3. Slip faces", ["barchans"] + trans),
+        "Slip faces at repose": ("3. Slip faces", barchans + trans),
         "Transverse crests perpendicular": ("4. Transverse dunes", trans),
         "Transverse wavelength resolution-independent": ("4. Transverse dunes", trans),
-        "Migration rate against Tarfaya": ("6. Migration rate in physical units", ["barchans"]),
     }
     for n in names:
         transport = jobs[n].get("transport", "EXPECTED")
+        if n.startswith("barchans"):
+            for law, section in (("Barchan speed c = a Q / (H + H0)", "1. Barchan migration speed against height"),
+                                 ("Barchan H/W ~ 0.1, horns downwind", "2. Barchan shape"),
+                                 ("Migration rate against Tarfaya", "6. Migration rate in physical units")):
+                laws[f"{law} ({transport})"] = (section, [n])
+            continue
         if n.startswith("isotropy"):
             law = (f"Isotropy: pile migrates with the wind ({transport})",
                    "9. Isotropy: a pile's migration at any angle to the grid")
@@ -1236,11 +1274,14 @@ def mark_not_run(rep, laws, skipped, jobs):
                                 "that ran.", ""]
             continue
         rep.law(law, NOT_RUN, why)
+        note = [f"{law}: {verdict(NOT_RUN)}: its scenes {', '.join(missing)} were left out of this "
+                "invocation (`--skip`).", ""]
         if f"## {section}" not in sections:
             sections.add(f"## {section}")
             rep.add(f"## {section}", "")
-        rep.add(f"{law}: {verdict(NOT_RUN)}: its scenes {', '.join(missing)} were left out of this "
-                "invocation (`--skip`).", "")
+        at = rep.lines.index(f"## {section}") + 2 + 2 * noted.get(section, 0)
+        noted[section] = noted.get(section, 0) + 1
+        rep.lines[at:at] = note
 
 
 def main():
@@ -1285,13 +1326,24 @@ def main():
     log("measuring")
     rep = Report(out)
     ran = [n for n in names if n not in skipped]
-    if "barchans" in ran:
-        rows, bsnaps, repose = barchan_laws(rep, T, dirs["barchans"], jobs["barchans"])
+    # The barchan scenes, one per transport mode the suite has: sections 1, 2
+    # and 6 measure each, and their laws are named with the mode.
+    bnames = [n for n in ran if n.startswith("barchans")]
+    bsnaps, subs = {}, []
+    for n in bnames:
+        sub = Report(out, plot_suffix=n[len("barchans"):])
+        rows, bsnaps[n], repose = barchan_laws(sub, T, dirs[n], jobs[n])
+        migration_law(sub, T, rows, jobs[n])
+        subs.append((jobs[n], sub))
+    merge_by_transport(rep, subs)
     tnames = [n for n in ran if n.startswith("transverse")]
     ts = {n: snapshots(dirs[n]) for n in tnames}
-    if "barchans" in ran:
-        finals = [(jobs["barchans"]["name"], bsnaps[-1])] + [(jobs[n]["name"], ts[n][-1]) for n in ts]
-        slip_face_law(rep, T, bsnaps, finals, repose, jobs["barchans"])
+    if bnames:
+        # The lee histogram on the first barchan scene (the STOCHASTIC one where
+        # the suite has it); the steepest slope on every scene's last snapshot.
+        finals = ([(jobs[n]["name"], bsnaps[n][-1]) for n in bnames] +
+                  [(jobs[n]["name"], ts[n][-1]) for n in ts])
+        slip_face_law(rep, T, bsnaps[bnames[0]], finals, repose, jobs[bnames[0]])
     if tnames:
         transverse_law(rep, T, [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in tnames])
     inames = [n for n in ran if n.startswith("isotropy")]
@@ -1302,12 +1354,10 @@ def main():
     osnaps = {n: snapshots(dirs[n]) for n in onames}
     if onames:
         orientation_law(rep, T, [(n, osnaps[n], jobs[n]) for n in onames])
-    mass_law(rep, T, ([(jobs["barchans"]["name"], bsnaps, jobs["barchans"])] if "barchans" in ran else []) +
+    mass_law(rep, T, [(jobs[n]["name"], bsnaps[n], jobs[n]) for n in bnames] +
              [(jobs[n]["name"], ts[n], jobs[n]) for n in ts] +
              [(jobs[n]["name"], isnaps[n], jobs[n]) for n in inames] +
              [(jobs[n]["name"], osnaps[n], jobs[n]) for n in onames])
-    if "barchans" in ran:
-        migration_law(rep, T, rows, jobs["barchans"])
     bjob = jobs["barchans"]
     flux_law(rep, T, calibrate(scene_dir / "barchans.json", None, 1) if physical(bjob) else None, bjob)
     rose = scene_dir / "drift_rose.json"

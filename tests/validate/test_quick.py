@@ -158,6 +158,50 @@ class Quick(unittest.TestCase):
         self.assertNotEqual(p.returncode, 0)
         self.assertIn("--skip transverse_finer matches no scene", p.stderr)
 
+    def test_barchans_in_both_transport_modes(self):
+        """A suite with barchans_expected (the full one) measures the barchan
+        laws in each mode: one section each, a part per mode, the laws named
+        with their mode, the plots apart. Here on the quick scenes plus an
+        EXPECTED twin of their barchans (a coarser step: a few seconds)."""
+        import json
+        import shutil
+        scenes = Path(self.tmp.name) / "scenes"
+        shutil.copytree(Path(os.environ["ERG_SOURCE_DIR"]) / "client/validate/scenes/quick", scenes)
+        job = json.loads((scenes / "barchans.json").read_text())
+        job.update(name="validate-barchans-quick-expected", transport="EXPECTED")
+        job["model"]["slab_m"] *= 4
+        job["run"].update(steps=job["run"]["steps"] // 4, snapshot_every=job["run"]["snapshot_every"] // 4)
+        (scenes / "barchans_expected.json").write_text(json.dumps(job))
+        out = Path(self.tmp.name) / "both"
+        shutil.copytree(self.out / "runs", out / "runs")
+        p = subprocess.run([ERG, "validate", "--out", str(out), "--quick", "--reuse", "--scenes", str(scenes)],
+                           capture_output=True, text=True, timeout=300)
+        self.assertEqual(p.returncode, 0, p.stderr[-3000:])
+        report = (out / "report.md").read_text()
+        laws = [l.split("|")[1].strip() for l in report.split("\n## ")[0].splitlines() if l.startswith("| ")]
+        for law in ("Barchan speed c = a Q / (H + H0)", "Barchan H/W ~ 0.1, horns downwind",
+                    "Migration rate against Tarfaya"):
+            self.assertIn(f"{law} (STOCHASTIC)", laws)
+            self.assertIn(f"{law} (EXPECTED)", laws)
+            self.assertNotIn(law, laws)
+        parts = re.split(r"(?m)^(?=## )", report)
+        heads = [q.splitlines()[0] for q in parts if q.startswith("## ")]
+        self.assertEqual(heads, SECTIONS)
+        for title in (SECTIONS[0], SECTIONS[1], SECTIONS[5]):
+            text = report.split(title)[1].split("\n## ")[0]
+            self.assertLess(text.index("**STOCHASTIC transport** (scene `validate-barchans-quick`)"),
+                            text.index("**EXPECTED transport** (scene `validate-barchans-quick-expected`)"))
+        for png in ("barchan_speed", "barchans", "migration_rate"):
+            self.assertTrue((out / "plots" / f"{png}.png").exists(), png)
+            self.assertTrue((out / "plots" / f"{png}_expected.png").exists(), png)
+        # The STOCHASTIC barchans are measured as in the quick suite itself.
+        rows = [l for l in self.report.split("\n## ")[0].splitlines()
+                if l.startswith("| Barchan") or l.startswith("| Migration")]
+        self.assertEqual(len(rows), 3)
+        for line in rows:
+            self.assertIn("(STOCHASTIC) |", line)
+            self.assertIn(line, report)
+
     def test_thresholds_have_sources(self):
         import json
         src = Path(os.environ["ERG_SOURCE_DIR"]) / "client" / "validate" / "thresholds.json"
