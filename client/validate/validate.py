@@ -1255,7 +1255,7 @@ def mark_not_run(rep, laws, skipped, jobs):
     """Every law with a skipped scene reads NOT RUN, whatever the scenes that
     ran measured (listed after it): a law is stated over all its scenes. A
     law none of whose scenes ran gets its section with the reason."""
-    present = {name: i for i, (name, _, _) in enumerate(rep.summary)}
+    present = {name for name, _, _ in rep.summary}
     sections = {line for line in rep.lines if line.startswith("## ")}
     noted = {}
     for law, (section, scenes) in laws.items():
@@ -1264,8 +1264,8 @@ def mark_not_run(rep, laws, skipped, jobs):
             continue
         why = "not run: " + ", ".join(missing)
         if law in present:
-            name, _, measured = rep.summary[present[law]]
-            rep.summary[present[law]] = (name, NOT_RUN, f"{measured}; {why}")
+            i = [name for name, _, _ in rep.summary].index(law)
+            rep.summary[i] = (law, NOT_RUN, f"{rep.summary[i][2]}; {why}")
             # Said at the top of the section, above the verdicts of the scenes that ran.
             at = rep.lines.index(f"## {section}") + 2 + 2 * noted.get(section, 0)
             noted[section] = noted.get(section, 0) + 1
@@ -1273,7 +1273,9 @@ def mark_not_run(rep, laws, skipped, jobs):
                                 "out of this invocation (`--skip`); the verdicts below are of the scenes "
                                 "that ran.", ""]
             continue
-        rep.law(law, NOT_RUN, why)
+        # In the summary next to the laws of its section, if any was measured.
+        kin = [i for i, (name, _, _) in enumerate(rep.summary) if laws.get(name, ("",))[0] == section]
+        rep.summary.insert(kin[-1] + 1 if kin else len(rep.summary), (law, NOT_RUN, why))
         note = [f"{law}: {verdict(NOT_RUN)}: its scenes {', '.join(missing)} were left out of this "
                 "invocation (`--skip`).", ""]
         if f"## {section}" not in sections:
