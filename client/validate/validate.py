@@ -327,6 +327,11 @@ def slab_m(job):
     return float(resolved(job)["model"]["slab_m"])
 
 
+def transport_of(job):
+    """EXPECTED or STOCHASTIC, with the proto's default where the job says nothing."""
+    return resolved(job)["transport"]
+
+
 def flux_of_scene(job):
     """The model's saturated flux (m^2/yr) under the scene's constant wind, or
     None in model units."""
@@ -400,7 +405,7 @@ def barchan_laws(rep, T, run_dir, job):
     rep.add("## 1. Barchan migration speed against height", "")
     rep.add(f"Scene `{run_dir.name}`: {len(job['layers']['sand'].get('piles', []))} isolated cones of sand on a "
             f"non-erodible flat bed, one wind {wind_text(job)} towards "
-            f"{wind:g} deg, {job.get('transport', 'EXPECTED')} transport. Dunes are the 8-connected bodies of sand thicker "
+            f"{wind:g} deg, {transport_of(job)} transport. Dunes are the 8-connected bodies of sand thicker "
             f"than {det['dune_sand_threshold_m']} m (periodic labelling), tracked by their "
             f"sand-weighted centroid unwrapped on the torus over steps {steps[0]}-{steps[-1]} "
             f"(the second half of the run); the speed is the least-squares slope of the along-wind "
@@ -453,7 +458,7 @@ def barchan_laws(rep, T, run_dir, job):
         ax.set_xlabel("dune height H (m)")
         ax.set_ylabel("migration speed (m/yr)")
         ax.legend(fontsize=7)
-        ax.set_title(f"Barchan speed against height ({job.get('transport', 'EXPECTED')})")
+        ax.set_title(f"Barchan speed against height ({transport_of(job)})")
         rep.plot(fig, "barchan_speed.png", "barchan speed", dpi=110)
         rep.law("Barchan speed c = a Q / (H + H0)", ok_speed,
                 f"slope {slope:.2f} over H >= {S['min_height_m']:g} m (expected -1 +/- {S['tolerance']:g}); "
@@ -526,7 +531,7 @@ def barchan_laws(rep, T, run_dir, job):
     fig.colorbar(im, ax=ax, label="sand (m)", shrink=0.8)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"Barchans at step {last['step']}, {job.get('transport', 'EXPECTED')} (+: centroids)")
+    ax.set_title(f"Barchans at step {last['step']}, {transport_of(job)} (+: centroids)")
     rep.plot(fig, "barchans.png", "barchans", dpi=110)
     rep.add(f"Source: {B['source']}.", "")
 
@@ -581,7 +586,7 @@ def migration_law(rep, T, rows, job):
     ax.plot(w, [r["v_yr"] for r in rows], "o", label="erg")
     ax.set_xlabel("dune width W (m)")
     ax.set_ylabel("migration (m/yr)")
-    ax.set_title(f"Migration against Tarfaya ({job.get('transport', 'EXPECTED')})")
+    ax.set_title(f"Migration against Tarfaya ({transport_of(job)})")
     ax.legend(fontsize=7)
     rep.plot(fig, "migration_rate.png", "migration rate", dpi=110)
     rep.add(f"Source: {R['source']}.", "")
@@ -856,7 +861,7 @@ def isotropy_law(rep, T, scenes):
     rep.add("## 9. Isotropy: a pile's migration at any angle to the grid", "")
     modes = {}
     for _, _, j in scenes:
-        modes.setdefault(j.get("transport", "EXPECTED"), j)
+        modes.setdefault(transport_of(j), j)
     rep.add("The same sand pile on a non-erodible flat bed under the same wind, blowing at "
             + ", ".join(sorted({f"{wind_of(j):g}" for _, _, j in scenes}, key=float))
             + " deg to the grid's x axis, in each transport mode ("
@@ -901,7 +906,7 @@ def isotropy_law(rep, T, scenes):
         last = window[-1]["sand"]
         v_last = float(last[last > thick].sum()) * cell * cell
         v_first = float(window[0]["sand"][window[0]["sand"] > thick].sum()) * cell * cell
-        row = {"name": name, "mode": job.get("transport", "EXPECTED"), "wind": wind,
+        row = {"name": name, "mode": transport_of(job), "wind": wind,
                "dist": float("nan"), "dir": float("nan"), "err": float("nan"),
                "speed": float("nan"), "x": xs, "y": ys, "v0": v_first, "v1": v_last}
         if xs:
@@ -976,7 +981,7 @@ def describe_layers(job):
     """The domain, the run and the initial sand, in words, for the report."""
     d = job["domain"]
     return (f"{d['nx']} x {d['ny']} cells of {d['cell_size_m']:g} m, {job['run']['steps']} steps, "
-            f"{job.get('transport', 'EXPECTED')} with slabs of {slab_m(job):g} m, " + describe_sand(job))
+            f"{transport_of(job)} with slabs of {slab_m(job):g} m, " + describe_sand(job))
 
 
 def describe_sand(job):
@@ -1094,7 +1099,7 @@ def orientation_law(rep, T, scenes):
         else:
             # Crests farther off than the lattice alone can move them fail.
             ok = None if diff <= lattice["lattice_tolerance_deg"] else False
-        row = {"name": job["name"], "mode": mode, "transport": job.get("transport", "EXPECTED"),
+        row = {"name": job["name"], "mode": mode, "transport": transport_of(job),
                "theta": theta, "n": n, "primary": primary, "pred": pred, "other": other, "measured": measured,
                "diff": diff, "formed": formed, "bare": bare, "ok": ok, "height": height, "cell": cell,
                "step": last["step"], "lattice": lattice}
@@ -1208,12 +1213,12 @@ def merge_by_transport(rep, subs):
             elif head is not None:
                 parts[head][-1][1].append(line)
         for name, ok, measured in sub.summary:
-            rep.law(f"{name} ({job.get('transport', 'EXPECTED')})", ok, measured)
+            rep.law(f"{name} ({transport_of(job)})", ok, measured)
     for head in order:
         rep.add(head, "")
         for job, lines in parts[head]:
             if len(subs) > 1:
-                rep.add(f"**{job.get('transport', 'EXPECTED')} transport** (scene `{job['name']}`):", "")
+                rep.add(f"**{transport_of(job)} transport** (scene `{job['name']}`):", "")
             while lines and not lines[0]:
                 lines = lines[1:]
             rep.add(*lines)
@@ -1232,7 +1237,7 @@ def law_scenes(names, jobs):
         "Transverse wavelength resolution-independent": ("4. Transverse dunes", trans),
     }
     for n in names:
-        transport = jobs[n].get("transport", "EXPECTED")
+        transport = transport_of(jobs[n])
         if n.startswith("barchans"):
             for law, section in (("Barchan speed c = a Q / (H + H0)", "1. Barchan migration speed against height"),
                                  ("Barchan H/W ~ 0.1, horns downwind", "2. Barchan shape"),
@@ -1256,34 +1261,33 @@ def mark_not_run(rep, laws, skipped, jobs):
     ran measured (listed after it): a law is stated over all its scenes. A
     law none of whose scenes ran gets its section with the reason."""
     present = {name for name, _, _ in rep.summary}
-    sections = {line for line in rep.lines if line.startswith("## ")}
     noted = {}
+
+    def note(section, text):
+        """At the top of the section (made if no law of it ran), above the
+        verdicts of the scenes that ran and after the notes before it."""
+        if f"## {section}" not in rep.lines:
+            rep.add(f"## {section}", "")
+        at = rep.lines.index(f"## {section}") + 2 + 2 * noted.get(section, 0)
+        noted[section] = noted.get(section, 0) + 1
+        rep.lines[at:at] = [text, ""]
+
     for law, (section, scenes) in laws.items():
         missing = [jobs[n]["name"] for n in scenes if n in skipped]
         if not missing:
             continue
         why = "not run: " + ", ".join(missing)
+        said = (f"{law}: {verdict(NOT_RUN)}: its scenes {', '.join(missing)} were left out of this "
+                "invocation (`--skip`)")
         if law in present:
             i = [name for name, _, _ in rep.summary].index(law)
             rep.summary[i] = (law, NOT_RUN, f"{rep.summary[i][2]}; {why}")
-            # Said at the top of the section, above the verdicts of the scenes that ran.
-            at = rep.lines.index(f"## {section}") + 2 + 2 * noted.get(section, 0)
-            noted[section] = noted.get(section, 0) + 1
-            rep.lines[at:at] = [f"{law}: {verdict(NOT_RUN)}: its scenes {', '.join(missing)} were left "
-                                "out of this invocation (`--skip`); the verdicts below are of the scenes "
-                                "that ran.", ""]
-            continue
-        # In the summary next to the laws of its section, if any was measured.
-        kin = [i for i, (name, _, _) in enumerate(rep.summary) if laws.get(name, ("",))[0] == section]
-        rep.summary.insert(kin[-1] + 1 if kin else len(rep.summary), (law, NOT_RUN, why))
-        note = [f"{law}: {verdict(NOT_RUN)}: its scenes {', '.join(missing)} were left out of this "
-                "invocation (`--skip`).", ""]
-        if f"## {section}" not in sections:
-            sections.add(f"## {section}")
-            rep.add(f"## {section}", "")
-        at = rep.lines.index(f"## {section}") + 2 + 2 * noted.get(section, 0)
-        noted[section] = noted.get(section, 0) + 1
-        rep.lines[at:at] = note
+            note(section, f"{said}; the verdicts below are of the scenes that ran.")
+        else:
+            # In the summary next to the laws of its section, if any was measured.
+            kin = [i for i, (name, _, _) in enumerate(rep.summary) if laws.get(name, ("",))[0] == section]
+            rep.summary.insert(kin[-1] + 1 if kin else len(rep.summary), (law, NOT_RUN, why))
+            note(section, f"{said}.")
 
 
 def main():
@@ -1321,20 +1325,19 @@ def main():
         if not any(fnmatch.fnmatchcase(n, g) for n in names):
             raise SystemExit(f"erg validate: --skip {g} matches no scene of {scene_dir} "
                              f"(scenes: {', '.join(sorted(names))})")
-    torun = [n for n in names if n not in skipped]
-    for i, name in enumerate(sorted(torun, key=lambda n: scene_cost(jobs[n])), start=1):
+    ran = [n for n in names if n not in skipped]
+    for i, name in enumerate(sorted(ran, key=lambda n: scene_cost(jobs[n])), start=1):
         timings[name] = run_scene(a.worker, scene_dir / f"{name}.json", dirs[name], a.threads,
-                                  a.reuse, i, len(torun))
+                                  a.reuse, i, len(ran))
     log("measuring")
     rep = Report(out)
-    ran = [n for n in names if n not in skipped]
     # The barchan scenes, one per transport mode the suite has: sections 1, 2
     # and 6 measure each, and their laws are named with the mode.
     bnames = [n for n in ran if n.startswith("barchans")]
-    bsnaps, subs = {}, []
+    bsnaps, repose, subs = {}, {}, []
     for n in bnames:
         sub = Report(out, plot_suffix=n[len("barchans"):])
-        rows, bsnaps[n], repose = barchan_laws(sub, T, dirs[n], jobs[n])
+        rows, bsnaps[n], repose[n] = barchan_laws(sub, T, dirs[n], jobs[n])
         migration_law(sub, T, rows, jobs[n])
         subs.append((jobs[n], sub))
     merge_by_transport(rep, subs)
@@ -1345,7 +1348,7 @@ def main():
         # the suite has it); the steepest slope on every scene's last snapshot.
         finals = ([(jobs[n]["name"], bsnaps[n][-1]) for n in bnames] +
                   [(jobs[n]["name"], ts[n][-1]) for n in ts])
-        slip_face_law(rep, T, bsnaps[bnames[0]], finals, repose, jobs[bnames[0]])
+        slip_face_law(rep, T, bsnaps[bnames[0]], finals, repose[bnames[0]], jobs[bnames[0]])
     if tnames:
         transverse_law(rep, T, [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in tnames])
     inames = [n for n in ran if n.startswith("isotropy")]

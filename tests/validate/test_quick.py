@@ -25,6 +25,18 @@ SECTIONS = [
     "## 8. Wind-rose drift: DP, RDP, RDD",
 ]
 
+VERDICTS = ("PASS", "FAIL", "UNRESOLVED", "NOT RUN")
+
+
+def summary_of(report):
+    """The report's summary table: law -> [verdict, measured]."""
+    summary = {}
+    for line in report.split("\n## ")[0].splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 3 and cells[1] in VERDICTS:
+            summary[cells[0]] = cells[1:]
+    return summary
+
 
 class Quick(unittest.TestCase):
     @classmethod
@@ -89,11 +101,7 @@ class Quick(unittest.TestCase):
         import json
         src = Path(os.environ["ERG_SOURCE_DIR"]) / "client" / "validate" / "thresholds.json"
         laws = json.loads(src.read_text())["quick_laws"]["laws"]
-        summary = {}
-        for line in self.report.split("\n## ")[0].splitlines():
-            cells = [c.strip() for c in line.strip().strip("|").split("|")]
-            if len(cells) == 3 and cells[1] in ("PASS", "FAIL"):
-                summary[cells[0]] = (cells[1], cells[2])
+        summary = summary_of(self.report)
         for law in laws:
             self.assertIn(law, summary, f"law '{law}' missing from the summary")
             self.assertEqual(summary[law][0], "PASS", f"{law}: {summary[law][1]}")
@@ -129,16 +137,9 @@ class Quick(unittest.TestCase):
         self.assertIn("[1/2]", p.stderr)
         self.assertNotIn("validate-transverse-1m-quick", p.stderr)
         report = (out / "report.md").read_text()
-        summary = {}
-        for line in report.split("\n## ")[0].splitlines():
-            cells = [c.strip() for c in line.strip().strip("|").split("|")]
-            if len(cells) == 3 and cells[1] in ("PASS", "FAIL", "UNRESOLVED", "NOT RUN"):
-                summary[cells[0]] = cells[1:]
-        full = {}
-        for line in self.report.split("\n## ")[0].splitlines():
-            cells = [c.strip() for c in line.strip().strip("|").split("|")]
-            if len(cells) == 3 and cells[1] in ("PASS", "FAIL", "UNRESOLVED"):
-                full[cells[0]] = cells[1:]
+        summary = summary_of(report)
+        full = summary_of(self.report)
+        self.assertNotIn("NOT RUN", [v for v, _ in full.values()])
         self.assertEqual(set(summary), set(full))
         needs_fine = ("Slip faces at repose", "Transverse crests perpendicular",
                       "Transverse wavelength resolution-independent")
@@ -178,7 +179,7 @@ class Quick(unittest.TestCase):
                            capture_output=True, text=True, timeout=300)
         self.assertEqual(p.returncode, 0, p.stderr[-3000:])
         report = (out / "report.md").read_text()
-        laws = [l.split("|")[1].strip() for l in report.split("\n## ")[0].splitlines() if l.startswith("| ")]
+        laws = summary_of(report)
         for law in ("Barchan speed c = a Q / (H + H0)", "Barchan H/W ~ 0.1, horns downwind",
                     "Migration rate against Tarfaya"):
             self.assertIn(f"{law} (STOCHASTIC)", laws)
