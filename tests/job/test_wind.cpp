@@ -343,11 +343,35 @@ TEST(Bidirectional, FluxRatioThreeGivesThreeQuarters) {
 }
 
 TEST(Bidirectional, ExtremeRatioStillBlowsBothWinds) {
+  // 1000 : 1 over periods of 10 steps: the secondary blows one step in every
+  // 1001 periods, so both winds blow and the ratio is kept exactly.
   const WindRegime r = regime_of(R"({"bidirectional": {"speed_mps": 4, "angle_deg": 90,
                                      "flux_ratio": 1000, "period_steps": 10}})");
-  const Duty d = duty(r, 4, 0, 90, 10, 5);
-  EXPECT_EQ(d.primary, 45);
-  EXPECT_EQ(d.secondary, 5);
+  const Duty d = duty(r, 4, 0, 90, 10, 1001);
+  EXPECT_EQ(d.primary, 10000);
+  EXPECT_EQ(d.secondary, 10);
+}
+
+TEST(Bidirectional, RatioThatDoesNotDivideThePeriodIsKeptOverThePeriods) {
+  // N = 2 over 20 steps: 40/3 primary steps a period. The primary takes 13,
+  // 13 and 14 steps in turn, first in each period; rounding every period to
+  // 13 would blow a ratio of 13 : 7 = 1.86.
+  const WindRegime r = regime_of(R"({"bidirectional": {"speed_mps": 5, "angle_deg": 120,
+                                     "flux_ratio": 2, "period_steps": 20}})");
+  const Duty d = duty(r, 5, 0, 120, 20, 30);
+  EXPECT_EQ(d.primary, 400);
+  EXPECT_EQ(d.secondary, 200);
+  const int expected_primary[3] = {13, 13, 14};
+  for (int p = 0; p < 6; ++p)
+    for (int t = 0; t < 20; ++t)
+      EXPECT_WIND(regime_at(r, 20 * p + t, 0, 1), 5, t < expected_primary[p % 3] ? 0 : 120);
+  // A period too short to split: 2 steps under N = 2 give the primary 1, 1
+  // and 2 steps in turn, 4 of every 6.
+  const WindRegime s = regime_of(R"({"bidirectional": {"speed_mps": 5, "angle_deg": 120,
+                                     "flux_ratio": 2, "period_steps": 2}})");
+  const Duty e = duty(s, 5, 0, 120, 2, 3);
+  EXPECT_EQ(e.primary, 4);
+  EXPECT_EQ(e.secondary, 2);
 }
 
 // ---- at_step: switching regimes -------------------------------------------------------

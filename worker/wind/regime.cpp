@@ -92,13 +92,22 @@ Vec2 regime_at(const erg::v1::WindRegime& regime, std::int64_t local_step, std::
     }
     case R::kBidirectional: {
       const auto& b = regime.bidirectional();
-      const double n = b.flux_ratio();
       const std::int64_t p = b.period_steps();
-      // Primary for round(p N / (1 + N)) steps of each period, at least 1 and
-      // leaving at least 1 for the secondary.
-      std::int64_t primary = std::llround(static_cast<double>(p) * n / (1.0 + n));
-      if (primary < 1) primary = 1;
-      if (primary > p - 1) primary = p - 1;
+      const std::int64_t k = local_step / p;
+      // The primary blows first in each period. Its steps over the first k
+      // periods are floor(k p N / (1 + N)), so the two winds' durations, and
+      // with equal speeds their sand fluxes, stand exactly in the ratio N
+      // over the long run, as flux_ratio promises ([N24] 5), whatever the
+      // period: a period of 20 steps under N = 2 gives the primary 13, 13
+      // and 14 steps in turn, not 13 in every period (a ratio of 1.86).
+      // The numerator first: k p N is exact for an integer N, so a quotient
+      // that is a whole number comes out whole.
+      const double n = b.flux_ratio();
+      const auto primary_before = [p, n](std::int64_t periods) {
+        return static_cast<std::int64_t>(
+            std::floor(static_cast<double>(periods) * static_cast<double>(p) * n / (1.0 + n)));
+      };
+      const std::int64_t primary = primary_before(k + 1) - primary_before(k);
       const bool first = (local_step % p) < primary;
       return polar(b.speed_mps(), b.direction_deg() + (first ? 0.0 : b.angle_deg()));
     }
