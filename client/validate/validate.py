@@ -282,6 +282,24 @@ def physical(job):
     return job.get("wind", {}).get("speed_is", "MODEL").upper() in ("SHEAR_VELOCITY", "WIND_AT_HEIGHT")
 
 
+def model_units_caveat(jobs):
+    """What a bed scene in model units shows (docs/dune-forms.md, "What makes
+    a bed unstable"): its pattern depends on the slab, so a verdict on it is
+    one on the scene's slab. Empty where every scene is in physical units."""
+    model = sorted(j.get("name", "an unnamed scene") for j in jobs if not physical(j))
+    if not model:
+        return ""
+    return (" **Model units:** " + ", ".join(model) + " are in model units, where no term of the model "
+            "makes a flat bed of sand unstable at small amplitude (the shear-stress perturbation, whose "
+            "upwind shift of the stress does, is on in physical units only). Measured on these beds "
+            "(docs/dune-forms.md, \"What makes a bed unstable\"): crests grow from lifts a large part of "
+            "a cell high (the EXPECTED scenes' slabs are a cell's height); with slabs of 1/8 of the cell "
+            "or less the EXPECTED bed flattens; the STOCHASTIC lifts' noise roughens it, and under two "
+            "winds no pattern forms at 1/40 to 1/640 of the cell, while under one wind crests across it "
+            "form at 1/40 (these scenes' slab) but only streaks along it at 1/160. So a verdict on these scenes is one on their slab; in physical "
+            "units both transport modes form crests at slabs where they are converged.")
+
+
 def calibrate(job_path, ratios=None, drift_steps=20000):
     """`erg calibrate` of a scene (JSON), cached per arguments."""
     key = (str(job_path), ratios, drift_steps)
@@ -763,7 +781,8 @@ def transverse_law(rep, T, scenes):
             "wavelengths at the measured one along the wind, and the largest gap between the "
             "admissible crest orientations near the transverse one; a law is judged where they are "
             "at most half its tolerance, and is UNRESOLVED elsewhere unless the measurement lies "
-            "beyond what the lattice alone can move it to (then it FAILs).", "")
+            "beyond what the lattice alone can move it to (then it FAILs)."
+            + model_units_caveat([j for _, _, j in scenes]), "")
     rep.add("| cells | crest-wind angle, tensor (deg) | coherence | crest-wind angle, spectrum (deg) "
             "| wavelength (m) | spectral peak (m) | lattice: wavelength spacing | lattice: crest gap (deg) "
             "| bare rock |", "|---|---|---|---|---|---|---|---|---|")
@@ -1046,7 +1065,7 @@ def orientation_law(rep, T, scenes):
             "an erodible bed, sand everywhere (Courrech du Pont, Narteau & Gao 2014; Gao et al. 2015 "
             "map how the orientation moves towards the fingering mode as the sand runs out): a bed "
             "with bare rock in any snapshot is sand-limited, so it is no test of the mode and FAILs "
-            "as a scene.", "")
+            "as a scene." + model_units_caveat([j for name, _, j in scenes if "_bed_" in name]), "")
     rep.add("| scene | transport | mode | theta (deg) | N | predicted (deg) | other mode's (deg) "
             "| measured (deg) | difference (deg) | pattern | also measured | lattice gap (deg) | verdict |",
             "|---|---|---|---|---|---|---|---|---|---|---|---|---|")

@@ -67,6 +67,19 @@ class Quick(unittest.TestCase):
             self.assertIn("Source: ", text, title + ": no source")
         self.assertRegex(self.report, r"\*\*\d+ of \d+ laws pass\.\*\*")
 
+    def test_model_unit_beds_carry_their_caveat(self):
+        # The quick transverse scenes are in model units, the barchans in
+        # physical ones: only the transverse section says that its pattern
+        # depends on the slab, and it names those scenes.
+        parts = re.split(r"(?m)^(?=## )", self.report)
+        body = {p.splitlines()[0]: p for p in parts if p.startswith("## ")}
+        transverse = body["## 4. Transverse dunes"]
+        self.assertIn("**Model units:**", transverse)
+        for name in ("validate-transverse-2m-quick", "validate-transverse-1m-quick"):
+            self.assertIn(name, transverse.split("**Model units:**")[1].split(" are in model units")[0])
+        others = [t for title, t in body.items() if title != "## 4. Transverse dunes"]
+        self.assertFalse(any("**Model units:**" in t for t in others))
+
     def test_mass_law_passes_exactly(self):
         mass = self.report.split("## 5. Mass")[1].split("\n## ")[0]
         rows = [l for l in mass.splitlines() if l.startswith("| validate-")]
