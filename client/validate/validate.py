@@ -320,12 +320,15 @@ _RESOLVED = {}
 
 def resolved(job):
     """The job with every default filled in, as the worker runs it (`erg
-    check`), so that no default is repeated here. Cached per scene."""
-    key = job["name"]
+    check`), so that no default is repeated here. Cached per job: two jobs
+    of one name but different contents are resolved apart."""
+    key = json.dumps(job, sort_keys=True)
     if key not in _RESOLVED:
-        path = _SCENE_PATHS.get(key)
+        path = _SCENE_PATHS.get(job.get("name"))
+        if path is not None and json.loads(Path(path).read_text()) != job:
+            path = None  # changed since it was read from its scene file
         tmp = None
-        if path is None:  # a job not read from a scene file
+        if path is None:  # a job not read from a scene file, or changed since
             tmp = tempfile.NamedTemporaryFile("w", suffix=".json", delete=False)
             json.dump(job, tmp)
             tmp.close()

@@ -329,49 +329,48 @@ TEST(Bidirectional, EqualFluxesAlternateHalfAndHalf) {
   }
 }
 
+// The regime of `json` over `periods` periods blows each wind for so many steps.
+void expect_duty(const std::string& json, double speed, double primary_deg, double secondary_deg,
+                 int period, int periods, int primary, int secondary) {
+  const Duty d = duty(regime_of(json), speed, primary_deg, secondary_deg, period, periods);
+  EXPECT_EQ(d.primary, primary) << json;
+  EXPECT_EQ(d.secondary, secondary) << json;
+}
+
 TEST(Bidirectional, FluxRatioThreeGivesThreeQuarters) {
-  const WindRegime r = regime_of(R"({"bidirectional": {"speed_mps": 9, "direction_deg": -45,
-                                     "angle_deg": 100, "flux_ratio": 3}})");
-  const Duty d = duty(r, 9, 315, 55, 20, 10);
-  EXPECT_EQ(d.primary, 150);
-  EXPECT_EQ(d.secondary, 50);
-  const WindRegime s = regime_of(R"({"bidirectional": {"speed_mps": 9, "angle_deg": 180,
-                                     "flux_ratio": 3, "period_steps": 8}})");
-  const Duty e = duty(s, 9, 0, 180, 8, 25);
-  EXPECT_EQ(e.primary, 150);
-  EXPECT_EQ(e.secondary, 50);
+  expect_duty(R"({"bidirectional": {"speed_mps": 9, "direction_deg": -45, "angle_deg": 100,
+                                    "flux_ratio": 3}})",
+              9, 315, 55, 20, 10, 150, 50);
+  expect_duty(R"({"bidirectional": {"speed_mps": 9, "angle_deg": 180, "flux_ratio": 3,
+                                    "period_steps": 8}})",
+              9, 0, 180, 8, 25, 150, 50);
 }
 
 TEST(Bidirectional, ExtremeRatioStillBlowsBothWinds) {
   // 1000 : 1 over periods of 10 steps: the secondary blows one step in every
   // 1001 periods, so both winds blow and the ratio is kept exactly.
-  const WindRegime r = regime_of(R"({"bidirectional": {"speed_mps": 4, "angle_deg": 90,
-                                     "flux_ratio": 1000, "period_steps": 10}})");
-  const Duty d = duty(r, 4, 0, 90, 10, 1001);
-  EXPECT_EQ(d.primary, 10000);
-  EXPECT_EQ(d.secondary, 10);
+  expect_duty(R"({"bidirectional": {"speed_mps": 4, "angle_deg": 90, "flux_ratio": 1000,
+                                    "period_steps": 10}})",
+              4, 0, 90, 10, 1001, 10000, 10);
 }
 
 TEST(Bidirectional, RatioThatDoesNotDivideThePeriodIsKeptOverThePeriods) {
   // N = 2 over 20 steps: 40/3 primary steps a period. The primary takes 13,
   // 13 and 14 steps in turn, first in each period; rounding every period to
   // 13 would blow a ratio of 13 : 7 = 1.86.
-  const WindRegime r = regime_of(R"({"bidirectional": {"speed_mps": 5, "angle_deg": 120,
-                                     "flux_ratio": 2, "period_steps": 20}})");
-  const Duty d = duty(r, 5, 0, 120, 20, 30);
-  EXPECT_EQ(d.primary, 400);
-  EXPECT_EQ(d.secondary, 200);
+  const std::string json = R"({"bidirectional": {"speed_mps": 5, "angle_deg": 120,
+                                                 "flux_ratio": 2, "period_steps": 20}})";
+  expect_duty(json, 5, 0, 120, 20, 30, 400, 200);
+  const WindRegime r = regime_of(json);
   const int expected_primary[3] = {13, 13, 14};
   for (int p = 0; p < 6; ++p)
     for (int t = 0; t < 20; ++t)
       EXPECT_WIND(regime_at(r, 20 * p + t, 0, 1), 5, t < expected_primary[p % 3] ? 0 : 120);
   // A period too short to split: 2 steps under N = 2 give the primary 1, 1
   // and 2 steps in turn, 4 of every 6.
-  const WindRegime s = regime_of(R"({"bidirectional": {"speed_mps": 5, "angle_deg": 120,
-                                     "flux_ratio": 2, "period_steps": 2}})");
-  const Duty e = duty(s, 5, 0, 120, 2, 3);
-  EXPECT_EQ(e.primary, 4);
-  EXPECT_EQ(e.secondary, 2);
+  expect_duty(R"({"bidirectional": {"speed_mps": 5, "angle_deg": 120, "flux_ratio": 2,
+                                    "period_steps": 2}})",
+              5, 0, 120, 2, 3, 4, 2);
 }
 
 // ---- at_step: switching regimes -------------------------------------------------------

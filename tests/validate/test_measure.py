@@ -489,6 +489,20 @@ class TransverseSection(unittest.TestCase):
                       "wavelengths 25% and 20% apart there", text)
 
 
+class Resolved(unittest.TestCase):
+    """validate.py reads a job's defaults from `erg check`, once per job."""
+
+    def test_jobs_of_one_name_resolve_apart(self):
+        import validate as V
+        V.ERG = os.environ["ERG_BIN"]
+        base = {"name": "one-name", "domain": {"nx": 64, "ny": 64, "cell_size_m": 1.0},
+                "layers": {"sand": {"constant": 1}}, "wind": {"constant": {"speed_mps": 5}}}
+        stochastic = dict(base, transport="STOCHASTIC")
+        self.assertEqual(V.transport_of(base), "EXPECTED")  # the proto's default
+        self.assertEqual(V.transport_of(stochastic), "STOCHASTIC")
+        self.assertEqual(V.transport_of(base), "EXPECTED")
+
+
 class OrientationSection(unittest.TestCase):
     """validate.py's section 10 on synthetic last snapshots: ridges and
     fingers drawn at the predicted orientation pass, ridges drawn at the
