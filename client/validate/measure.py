@@ -335,19 +335,32 @@ def histogram_peak(values, bin_deg, top_deg):
 
 # --- periodic patterns ----------------------------------------------------------
 
-def periodic_gradient(height, cell_size_m):
-    gx = (np.roll(height, -1, axis=1) - np.roll(height, 1, axis=1)) / (2 * cell_size_m)
-    gy = (np.roll(height, -1, axis=0) - np.roll(height, 1, axis=0)) / (2 * cell_size_m)
-    return gx, gy
-
-
 def structure_orientation(height, cell_size_m):
     """Dominant gradient direction from the structure tensor (degrees in
     [0, 180)), the crest direction (perpendicular) and the coherence
     (lambda1 - lambda2) / (lambda1 + lambda2) in [0, 1]: 1 for parallel
-    ridges, 0 for no preferred direction."""
-    gx, gy = periodic_gradient(height, cell_size_m)
-    jxx, jyy, jxy = float(np.sum(gx * gx)), float(np.sum(gy * gy)), float(np.sum(gx * gy))
+    ridges, 0 for no preferred direction.
+
+    The tensor is that of the field's dominant band, the wavevectors whose
+    |k| lies within a factor 2 of the spectral peak's (the band of
+    spectrum_wavelength): by Parseval, sum over that band of P(k) k k^T is
+    the summed outer product of the band-passed field's gradient. A tensor
+    of the raw cell-to-cell gradient weighs each wavevector by |k|^2, so the
+    stochastic lifts' noise at the scale of a cell, small in height but
+    steep, outweighs dunes tens of cells long and hides their crests
+    (docs/dune-forms.md, "What makes a bed unstable")."""
+    ny, nx = height.shape
+    p = np.abs(np.fft.fft2(height - height.mean())) ** 2
+    kx = np.broadcast_to(np.fft.fftfreq(nx, d=cell_size_m)[None, :], p.shape)
+    ky = np.broadcast_to(np.fft.fftfreq(ny, d=cell_size_m)[:, None], p.shape)
+    kmag = np.hypot(kx, ky)
+    p[0, 0] = 0.0
+    if not np.any(p > 0):
+        return {"gradient_deg": 0.0, "crest_deg": 90.0, "coherence": 0.0}
+    kp = float(kmag.flat[int(np.argmax(p))])
+    band = (kmag >= kp / 2) & (kmag <= 2 * kp) & (kmag > 0)
+    w, bx, by = p[band], kx[band], ky[band]
+    jxx, jyy, jxy = float(np.sum(w * bx * bx)), float(np.sum(w * by * by)), float(np.sum(w * bx * by))
     grad_dir = 0.5 * math.degrees(math.atan2(2 * jxy, jxx - jyy)) % 180.0
     tr = jxx + jyy
     disc = math.sqrt((jxx - jyy) ** 2 + 4 * jxy * jxy)

@@ -296,7 +296,7 @@ def model_units_caveat(jobs):
             "a cell high (the EXPECTED scenes' slabs are a cell's height); with slabs of 1/8 of the cell "
             "or less the EXPECTED bed flattens; the STOCHASTIC lifts' noise roughens it, and under two "
             "winds no pattern forms at 1/40 to 1/640 of the cell, while under one wind crests across it "
-            "form at 1/40 (these scenes' slab) but only streaks along it at 1/160. So a verdict on these scenes is one on their slab; in physical "
+            "form at 1/40 (these scenes' slab) but none at 1/160. So a verdict on these scenes is one on their slab; in physical "
             "units both transport modes form crests at slabs where they are converged.")
 
 
@@ -775,10 +775,11 @@ def transverse_law(rep, T, scenes):
             + ", ".join(f"{r['cell']:g} m" for r in res) + f" cells; final snapshots (step {c['step']}). "
             "Transverse dunes are those of an erodible bed, sand everywhere: the share of bare rock "
             "is listed. "
-            "Crest orientation from the structure tensor of the height gradient (coherence 1: "
-            "parallel ridges), and from the peak of the 2-D power spectrum; wavelength = 1 / "
-            "power-weighted mean |k| over the dominant band (|k| within a factor 2 of the "
-            "spectral peak). The torus admits only the wavelengths L / |(m, n)| and the crests "
+            "Crest orientation from the structure tensor of the height gradient over the spectrum's "
+            "dominant band (|k| within a factor 2 of the spectral peak; coherence 1: parallel ridges; "
+            "the band keeps the steep cell-scale noise of stochastic lifts from hiding the crests), "
+            "and from the peak of the 2-D power spectrum; wavelength = 1 / power-weighted mean |k| "
+            "over the same band. The torus admits only the wavelengths L / |(m, n)| and the crests "
             "across those lattice vectors (docs/dune-forms.md, \"What a periodic domain can "
             "resolve\"): the lattice columns give the relative spacing of the admissible "
             "wavelengths at the measured one along the wind, and the largest gap between the "
@@ -1049,7 +1050,7 @@ def orientation_law(rep, T, scenes):
             "elongates along the resultant flux at its crest (the crest-normal fluxes cancel). "
             + "".join(sorted({f"Scene {j['name']}: {describe_layers(j)}. " for _, _, j in scenes}))
             + "Measured on the last snapshot: the crest orientation of the bed from the structure tensor "
-            "of the height (the 2-D spectrum's strongest wavevector is listed too; on these domains its "
+            "of the height over the spectrum's dominant band, as in section 4 (the 2-D spectrum's strongest wavevector is listed too; on these domains its "
             "directions are harmonics several degrees apart), the elongation of the fingers from the "
             "central lobe of the periodic autocorrelation of the dunes' sand (thicker than "
             f"{det['dune_sand_threshold_m']:g} m; lags above "
