@@ -293,11 +293,12 @@ def model_units_caveat(jobs):
             "makes a flat bed of sand unstable at small amplitude (the shear-stress perturbation, whose "
             "upwind shift of the stress does, is on in physical units only). Measured on these beds "
             "(docs/dune-forms.md, \"What makes a bed unstable\"): crests grow from lifts a large part of "
-            "a cell high (the EXPECTED scenes' slabs are a cell's height); with slabs of 1/8 of the cell "
-            "or less the EXPECTED bed flattens; the STOCHASTIC lifts' noise roughens it, and under two "
-            "winds no pattern forms at 1/40 to 1/640 of the cell, while under one wind crests across it "
-            "form at 1/40 (these scenes' slab) but none at 1/160. So a verdict on these scenes is one on their slab; in physical "
-            "units both transport modes form crests at slabs where they are converged.")
+            "a cell high (the suite's EXPECTED beds lift a cell's height); with slabs of 1/8 of the "
+            "cell or less the EXPECTED bed flattens; the STOCHASTIC lifts' noise roughens it, and "
+            "under two winds no pattern forms at 1/40 to 1/640 of the cell, while under one wind "
+            "crests across it form at 1/40 (the suite's slab) but none at 1/160. So a verdict on "
+            "these scenes is one on their slab; in physical units both transport modes form crests "
+            "at slabs where they are converged.")
 
 
 def calibrate(job_path, ratios=None, drift_steps=20000):
@@ -1050,8 +1051,9 @@ def orientation_law(rep, T, scenes):
             "elongates along the resultant flux at its crest (the crest-normal fluxes cancel). "
             + "".join(sorted({f"Scene {j['name']}: {describe_layers(j)}. " for _, _, j in scenes}))
             + "Measured on the last snapshot: the crest orientation of the bed from the structure tensor "
-            "of the height over the spectrum's dominant band, as in section 4 (the 2-D spectrum's strongest wavevector is listed too; on these domains its "
-            "directions are harmonics several degrees apart), the elongation of the fingers from the "
+            "of the height over the spectrum's dominant band, as in section 4 (the 2-D spectrum's "
+            "strongest wavevector is listed too; on these domains its directions are harmonics "
+            "several degrees apart), the elongation of the fingers from the "
             "central lobe of the periodic autocorrelation of the dunes' sand (thicker than "
             f"{det['dune_sand_threshold_m']:g} m; lags above "
             f"{O['autocorrelation_level']:g} of its peak; the volume-weighted mean axis of the elongated "
