@@ -335,6 +335,27 @@ def histogram_peak(values, bin_deg, top_deg):
 
 # --- periodic patterns ----------------------------------------------------------
 
+def dominant_band(height, cell_size_m):
+    """The power spectrum of a periodic field and its dominant band: the
+    wavevectors whose |k| lies within a factor 2 of the strongest non-zero
+    one's. Returns a dict of power, kx, ky, kmag (cycles per metre, arrays of
+    the field's shape), peak (the strongest wavevector's index) and band (a
+    mask), or None for a flat field. The one band that the wavelength and
+    the crest orientation are both measured over."""
+    ny, nx = height.shape
+    p = np.abs(np.fft.fft2(height - height.mean())) ** 2
+    p[0, 0] = 0.0
+    if not np.any(p > 0):
+        return None
+    kx = np.broadcast_to(np.fft.fftfreq(nx, d=cell_size_m)[None, :], p.shape)
+    ky = np.broadcast_to(np.fft.fftfreq(ny, d=cell_size_m)[:, None], p.shape)
+    kmag = np.hypot(kx, ky)
+    peak = np.unravel_index(int(np.argmax(p)), p.shape)
+    kp = float(kmag[peak])
+    band = (kmag >= kp / 2) & (kmag <= 2 * kp) & (kmag > 0)
+    return {"power": p, "kx": kx, "ky": ky, "kmag": kmag, "peak": peak, "band": band}
+
+
 def structure_orientation(height, cell_size_m):
     """Dominant gradient direction from the structure tensor (degrees in
     [0, 180)), the crest direction (perpendicular) and the coherence
@@ -349,17 +370,10 @@ def structure_orientation(height, cell_size_m):
     stochastic lifts' noise at the scale of a cell, small in height but
     steep, outweighs dunes tens of cells long and hides their crests
     (docs/dune-forms.md, "What makes a bed unstable")."""
-    ny, nx = height.shape
-    p = np.abs(np.fft.fft2(height - height.mean())) ** 2
-    kx = np.broadcast_to(np.fft.fftfreq(nx, d=cell_size_m)[None, :], p.shape)
-    ky = np.broadcast_to(np.fft.fftfreq(ny, d=cell_size_m)[:, None], p.shape)
-    kmag = np.hypot(kx, ky)
-    p[0, 0] = 0.0
-    if not np.any(p > 0):
+    b = dominant_band(height, cell_size_m)
+    if b is None:
         return {"gradient_deg": 0.0, "crest_deg": 90.0, "coherence": 0.0}
-    kp = float(kmag.flat[int(np.argmax(p))])
-    band = (kmag >= kp / 2) & (kmag <= 2 * kp) & (kmag > 0)
-    w, bx, by = p[band], kx[band], ky[band]
+    w, bx, by = b["power"][b["band"]], b["kx"][b["band"]], b["ky"][b["band"]]
     jxx, jyy, jxy = float(np.sum(w * bx * bx)), float(np.sum(w * by * by)), float(np.sum(w * bx * by))
     grad_dir = 0.5 * math.degrees(math.atan2(2 * jxy, jxx - jyy)) % 180.0
     tr = jxx + jyy
@@ -383,17 +397,13 @@ def spectrum_wavelength(height, cell_size_m):
     1 / (power-weighted mean |k|) over the wavevectors with |k| within a
     factor 2 of the peak's (the dominant band), so it varies continuously
     rather than in steps of the domain's harmonics."""
-    ny, nx = height.shape
-    p = np.abs(np.fft.fft2(height - height.mean())) ** 2
-    kx = np.fft.fftfreq(nx, d=cell_size_m)[None, :]
-    ky = np.fft.fftfreq(ny, d=cell_size_m)[:, None]
-    kmag = np.sqrt(kx * kx + ky * ky)
-    p[0, 0] = 0.0
-    iy, ix = np.unravel_index(int(np.argmax(p)), p.shape)
-    kp = float(kmag[iy, ix])
-    band = (kmag >= kp / 2) & (kmag <= 2 * kp) & (kmag > 0)
-    kmean = float(np.sum(p[band] * np.broadcast_to(kmag, p.shape)[band]) / np.sum(p[band]))
-    direction = math.degrees(math.atan2(float(ky[iy, 0]), float(kx[0, ix]))) % 180.0
+    b = dominant_band(height, cell_size_m)
+    if b is None:
+        raise ValueError("a flat field has no dominant wavelength")
+    p, band, kmag = b["power"], b["band"], b["kmag"]
+    kmean = float(np.sum(p[band] * kmag[band]) / np.sum(p[band]))
+    direction = math.degrees(math.atan2(b["ky"][b["peak"]], b["kx"][b["peak"]])) % 180.0
+    kp = float(kmag[b["peak"]])
     return {"wavelength_m": 1.0 / kmean, "peak_wavelength_m": 1.0 / kp,
             "wavevector_deg": direction}
 
