@@ -5,12 +5,10 @@ along +Z, DIR/run.xdmf one animated run, and DIR/overview.xdmf the run at its
 overview level. ParaView's own pvbatch reads the
 files (tests/formats/pv_inspect.py) and what it sees is checked against the
 snapshots read by h5py. A warped, coloured screenshot is rendered under
-xvfb-run (ERG_PARAVIEW_SCREENSHOT=FILE keeps a copy; README's
-docs/paraview.png is made that way)."""
-import json
+an Xvfb of the test's own (paraview_batch.py; ERG_PARAVIEW_SCREENSHOT=FILE
+keeps a copy; README's docs/paraview.png is made that way)."""
 import os
 import shutil
-import subprocess
 import tempfile
 import unittest
 
@@ -19,26 +17,13 @@ import numpy as np
 from PIL import Image
 
 import run_helper as R
-
-HERE = os.path.dirname(os.path.abspath(__file__))
-
-
-def pvbatch(xdmf, screenshot=None):
-    """What ParaView sees in `xdmf` (pv_inspect.py's JSON)."""
-    cmd = ["xvfb-run", "-a", "pvbatch", os.path.join(HERE, "pv_inspect.py"), xdmf]
-    if screenshot:
-        cmd.append(screenshot)
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
-    lines = [ln for ln in p.stdout.splitlines() if ln.startswith("ERG_PV ")]
-    if p.returncode != 0 or not lines:
-        raise AssertionError(f"pvbatch exited {p.returncode}:\n{p.stdout}\n{p.stderr}")
-    return json.loads(lines[-1][len("ERG_PV "):])
+from paraview_batch import inspect as pvbatch
 
 
 class ParaView(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        for tool in ("pvbatch", "xvfb-run"):
+        for tool in ("pvbatch", "Xvfb"):
             if not shutil.which(tool):
                 raise AssertionError(f"{tool} not found: run deploy/bootstrap.sh")
         cls.tmp = tempfile.TemporaryDirectory(prefix="erg_paraview_")
