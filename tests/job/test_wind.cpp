@@ -347,8 +347,9 @@ TEST(Bidirectional, FluxRatioThreeGivesThreeQuarters) {
 }
 
 TEST(Bidirectional, ExtremeRatioStillBlowsBothWinds) {
-  // 1000 : 1 over periods of 10 steps: the secondary blows one step in every
-  // 1001 periods, so both winds blow and the ratio is kept exactly.
+  // 1000 : 1 over periods of 10 steps: the secondary blows 10 steps in 1001
+  // periods (one step in about one period of 100), so both winds blow and
+  // the ratio is kept exactly.
   expect_duty(R"({"bidirectional": {"speed_mps": 4, "angle_deg": 90, "flux_ratio": 1000,
                                     "period_steps": 10}})",
               4, 0, 90, 10, 1001, 10000, 10);

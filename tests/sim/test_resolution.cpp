@@ -9,6 +9,7 @@
 
 #include "job/spec.h"
 #include "sim/resolution.h"
+#include "wind/regime.h"
 
 namespace erg {
 namespace {
@@ -146,6 +147,52 @@ TEST(Resolution, StepIsWarnedOnlyWithTheShearStress) {
   EXPECT_EQ(step_warning(job(4.0, kShearWind)), "");  // 0.1 m = 1/40 of 4 m
   EXPECT_EQ(step_warning(job(1.0, kShearWind, R"("physics": {"shear_stress_a": 0})")), "");
   EXPECT_EQ(step_warning(job(1.0, kModelWind)), "");
+}
+
+// A bidirectional period shorter than 1 + flux_ratio steps is warned, for
+// the job's wind and for a wind switched in by an event, and what the warning
+// says of the secondary wind is what wind/regime.cpp blows.
+TEST(Resolution, BidirectionalPeriodTooShortForTheSecondaryIsWarned) {
+  const auto bidi = [](int period, int ratio) {
+    return R"({"bidirectional": {"speed_mps": 5, "angle_deg": 90, "flux_ratio": )" +
+           std::to_string(ratio) + R"(, "period_steps": )" + std::to_string(period) + "}}";
+  };
+  const auto spec = job(1.0, R"("wind": )" + bidi(10, 1000));
+  ASSERT_TRUE(job::validate(spec).empty());
+  const auto w = wind_period_warnings(spec);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_TRUE(has(w[0],
+                  "wind.bidirectional.period_steps = 10 is shorter than 1 + "
+                  "wind.bidirectional.flux_ratio = 1001 steps"))
+      << w[0];
+  EXPECT_TRUE(has(w[0], "one step in about 1% of the periods")) << w[0];
+  EXPECT_TRUE(has(w[0], "period_steps >= 1001 keeps both winds in every period")) << w[0];
+  EXPECT_EQ(resolution_warnings(spec).back(), w[0]);
+  // What the wind does: over 1001 periods the secondary blows in 10 of
+  // them, one step each (1%).
+  int periods_with_secondary = 0, secondary_steps = 0;
+  for (int k = 0; k < 1001; ++k) {
+    int here = 0;
+    for (int t = 0; t < 10; ++t) here += wind::regime_at(spec.wind(), 10 * k + t, 0, 1).x < 0.5;
+    periods_with_secondary += here > 0;
+    secondary_steps += here;
+  }
+  EXPECT_EQ(periods_with_secondary, 10);
+  EXPECT_EQ(secondary_steps, 10);
+  // From 1 + flux_ratio steps on the secondary has a step in every period.
+  EXPECT_TRUE(wind_period_warnings(job(1.0, R"("wind": )" + bidi(3, 2))).empty());
+  EXPECT_TRUE(wind_period_warnings(job(1.0, R"("wind": )" + bidi(20, 5))).empty());
+  EXPECT_EQ(wind_period_warnings(job(1.0, R"("wind": )" + bidi(2, 2))).size(), 1u);
+  // A wind switched in by the timeline is named by its event.
+  const auto ev = job(1.0, kModelWind, R"("events": [{"step": 5, "wind": )" + bidi(4, 5) + "}]");
+  ASSERT_TRUE(job::validate(ev).empty());
+  const auto we = wind_period_warnings(ev);
+  ASSERT_EQ(we.size(), 1u);
+  EXPECT_TRUE(has(we[0],
+                  "events[0].wind.bidirectional.period_steps = 4 is shorter than 1 + "
+                  "events[0].wind.bidirectional.flux_ratio = 6 steps"))
+      << we[0];
+  EXPECT_TRUE(wind_period_warnings(job(1.0, kModelWind)).empty());
 }
 
 // Each warning's finest cell resolves its length (and coarser cells do not).

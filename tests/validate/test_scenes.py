@@ -3,7 +3,9 @@
 the quick suite is a valid job, and none is warned that its step is too
 large for the shear stress over relief (sim/resolution.h, step_warning):
 a scene whose dunes spread with the step would measure the step, not the
-model (docs/physical-units.md, "The step with the stress on")."""
+model (docs/physical-units.md, "The step with the stress on"), nor that its
+two winds cannot both blow in every period (sim/resolution.h,
+wind_period_warnings)."""
 import json
 import os
 import subprocess
@@ -25,6 +27,8 @@ class Scenes(unittest.TestCase):
                                    timeout=60)
                 self.assertEqual(r.returncode, 0, r.stderr[-2000:])
                 self.assertNotIn("the step's lift", r.stderr)
+                # Two winds alternate in every period of a two-wind scene.
+                self.assertNotIn("cannot blow in every period", r.stderr)
 
     def test_the_isotropy_scenes_are_one_scene_in_both_modes(self):
         # Section 9 compares the two transport modes on the same pile: each

@@ -20,6 +20,11 @@ std::string num(double v) {
   o << v;
   return o.str();
 }
+// A count of steps: whole numbers in full (1001, not 1e+03).
+std::string steps(double v) {
+  return v == std::floor(v) && std::fabs(v) < 1e15 ? std::to_string(static_cast<long long>(v))
+                                                   : num(v);
+}
 std::string metres(double v) {
   return num(v) + " m";
 }
@@ -170,10 +175,38 @@ std::string step_warning(const erg::v1::JobSpec& spec) {
          metres(largest) + ", with run.steps raised to cover the same time)";
 }
 
+std::vector<std::string> wind_period_warnings(const erg::v1::JobSpec& spec) {
+  std::vector<std::string> out;
+  const auto check = [&out](const erg::v1::WindRegime& w, const std::string& field) {
+    if (!w.has_bidirectional()) return;
+    const auto& b = w.bidirectional();
+    const double p = static_cast<double>(b.period_steps());
+    const double n = b.flux_ratio();
+    if (p >= 1.0 + n) return;
+    // The secondary's share of a period, p / (1 + N) steps, is under one
+    // step: it blows one step in a fraction p / (1 + N) of the periods.
+    out.push_back(field + ".period_steps = " + steps(p) + " is shorter than 1 + " + field +
+                  ".flux_ratio = " + steps(1.0 + n) +
+                  " steps: the secondary wind cannot blow in every period, so it blows one step "
+                  "in about " +
+                  percent(p / (1.0 + n)) +
+                  " of the periods and the two winds alternate about every " + steps(1.0 + n) +
+                  " steps, not every " + steps(p) +
+                  " (the flux ratio is still exact over the long run; period_steps >= " +
+                  steps(std::ceil(1.0 + n)) + " keeps both winds in every period)");
+  };
+  check(spec.wind(), "wind.bidirectional");
+  for (int i = 0; i < spec.events_size(); ++i)
+    if (spec.events(i).has_wind())
+      check(spec.events(i).wind(), "events[" + std::to_string(i) + "].wind.bidirectional");
+  return out;
+}
+
 std::vector<std::string> resolution_warnings(const erg::v1::JobSpec& spec) {
   std::vector<std::string> out;
   for (auto& u : unresolved_lengths(spec)) out.push_back(std::move(u.warning));
   if (auto w = step_warning(spec); !w.empty()) out.push_back(std::move(w));
+  for (auto& w : wind_period_warnings(spec)) out.push_back(std::move(w));
   return out;
 }
 

@@ -28,6 +28,12 @@
 // below it the speeds hardly change with the step, the shapes still do
 // (docs/physical-units.md, "The step with the stress on").
 //
+// And one about the wind's clock: a bidirectional regime whose period_steps
+// is shorter than 1 + flux_ratio cannot blow its secondary wind in every
+// period (wind/regime.cpp gives the primary floor(k p N / (1 + N)) steps over
+// the first k periods), so the winds alternate more slowly than the period
+// says, though the flux ratio stays exact over the long run.
+//
 // The job still runs (these are warnings, not errors): `erg check`, the
 // worker's start-up log and ergd's answer to a submitted job all say them,
 // in these words.
@@ -70,8 +76,13 @@ std::vector<UnresolvedLength> unresolved_lengths(const erg::v1::JobSpec& spec);
 // The step's warning (see above), or "" when the step is fine.
 std::string step_warning(const erg::v1::JobSpec& spec);
 
-// The warnings alone, the lengths' then the step's, one sentence each
-// (without a "warning:" prefix).
+// The wind regimes' (the job's, then the events' in order) whose
+// bidirectional period is too short for the secondary to blow in every
+// period; empty when none is.
+std::vector<std::string> wind_period_warnings(const erg::v1::JobSpec& spec);
+
+// The warnings alone, the lengths', the step's, then the wind periods', one
+// sentence each (without a "warning:" prefix).
 std::vector<std::string> resolution_warnings(const erg::v1::JobSpec& spec);
 
 }  // namespace erg
