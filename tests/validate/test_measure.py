@@ -286,6 +286,36 @@ class Mass(unittest.TestCase):
         self.assertEqual((checked, drifts, skipped), (1, [0], [(0, 100)]))
 
 
+class MassLaw(unittest.TestCase):
+    """Section 5 names what fails it: a scene that drifts, and a scene whose
+    every interval holds an event (so nothing of it is checked)."""
+
+    def run_law(self, runs):
+        import json
+        import tempfile
+        from pathlib import Path
+        import validate as V
+        T = json.loads(Path(os.path.dirname(M.__file__), "thresholds.json").read_text())
+        with tempfile.TemporaryDirectory() as tmp:
+            rep = V.Report(Path(tmp))
+            V.mass_law(rep, T, runs)
+        return rep.summary[-1]
+
+    def test_a_drift_and_an_unchecked_scene_are_named(self):
+        def snaps(*totals):
+            return [{"step": 100 * i, "sand_units_total": t, "airborne_units_total": 0}
+                    for i, t in enumerate(totals)]
+        exact = ("exact", snaps(7, 7, 7), {})
+        fed = ("fed", snaps(7, 9, 9), {"events": [{"step": 50}]})
+        self.assertEqual(self.run_law([exact, fed]), ("Mass conserved exactly", True, "exact"))
+        drift = ("drifting", snaps(7, 7, 8), {})
+        unchecked = ("always-fed", snaps(7, 9, 11), {"events": [{"step": 50}, {"step": 150}]})
+        name, ok, measured = self.run_law([exact, drift, unchecked])
+        self.assertFalse(ok)
+        self.assertEqual(measured, "drift in drifting; not checked from step 0 without events "
+                                   "in always-fed")
+
+
 class TwoWindOrientation(unittest.TestCase):
     """Courrech du Pont, Narteau & Gao 2014: the predictions against values
     worked out by hand from the paper's formulas, with the primary wind
@@ -585,7 +615,8 @@ class OrientationSection(unittest.TestCase):
             self.assertTrue((Path(tmp) / "plots" / "orientation.png").exists())
         text = "\n".join(rep.lines)
         self.assertIn("Scene finger-ok: 256 x 256 cells of 1 m, 400 steps, EXPECTED with slabs of 0.1 m, "
-                      "a pile 4 m high of 20 m radius at (60, 60) m on bare rock.", text)
+                      "model units (winds of 5 m/s), a pile 4 m high of 20 m radius at (60, 60) m on "
+                      "bare rock.", text)
         rows = {l.split(" | ")[0][2:]: l for l in text.splitlines() if l.startswith("| bed-") or l.startswith("| finger-")}
         self.assertRegex(rows["bed-ok"], r"\| 73\.7 \| 39\.2 \| 7[34]\.\d \| 0\.\d \|.*\| [0-2]\.\d \(nearest "
                                          r"admissible 7[34]\.\d.*\| PASS \|$")
