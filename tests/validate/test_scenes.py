@@ -8,10 +8,13 @@ two winds cannot both blow in every period (sim/resolution.h,
 wind_period_warnings)."""
 import json
 import os
+import re
 import subprocess
 import tempfile
 import unittest
 from pathlib import Path
+
+import numpy as np
 
 ERG = os.environ["ERG_BIN"]
 SCENES = Path(os.environ["ERG_SOURCE_DIR"]) / "client" / "validate" / "scenes"
@@ -45,6 +48,34 @@ class Scenes(unittest.TestCase):
                 self.assertEqual(expected["name"], stochastic["name"] + "-expected")
                 self.assertEqual(dict(expected, name=None, transport=None),
                                  dict(stochastic, name=None, transport=None))
+
+    def test_the_fed_sources_supply_the_law_s_flux_across_their_width(self):
+        # The EXPECTED fingering scenes (physical units) feed their source
+        # with what a saturated flux carries across its width, Q_sat 2 R:
+        # the feed is set from the flux law and the calibration that
+        # `erg check` prints, not chosen for the orientation it gives.
+        for p in sorted((SCENES / "full").glob("orientation_finger_*_expected.json")):
+            with self.subTest(scene=p.name):
+                job = json.loads(p.read_text())
+                r = subprocess.run([ERG, "check", str(p)], capture_output=True, text=True,
+                                   timeout=60)
+                self.assertEqual(r.returncode, 0, r.stderr[-2000:])
+                m = re.search(r"the law's ([0-9.e+]+) m\^2/yr: .* \(([0-9.e+]+) steps per year\)",
+                              r.stderr)
+                self.assertIsNotNone(m, r.stderr[-2000:])
+                q_sat, steps_per_year = float(m.group(1)), float(m.group(2))
+                feeds = [e for e in job["events"] if "sand" in e]
+                self.assertGreater(len(feeds), 10)
+                every = feeds[1]["step"] - feeds[0]["step"]
+                b = feeds[0]["sand"]
+                # The brush: full height inside radius - falloff, smoothstep
+                # to 0 at the radius (proto/erg/v1/job.proto, Brush).
+                radius, falloff = b["radius_m"], b["falloff_m"]
+                rr = np.linspace(0.0, radius, 200001)
+                t = np.clip((radius - rr) / falloff, 0.0, 1.0)
+                volume = b["height"] * np.trapz(t * t * (3 - 2 * t) * 2 * np.pi * rr, rr)
+                supply = volume * steps_per_year / every
+                self.assertAlmostEqual(supply / (q_sat * 2 * radius), 1.0, delta=0.05)
 
     def test_a_large_step_with_the_stress_is_warned(self):
         # The check above can fail: the barchan scene with the step it had
