@@ -138,7 +138,12 @@ class Slurm(ErgdTest):
                        check=True, env=self.cluster.env)
         done = self.ergd.wait(job_id, timeout=600)
         self.assertEqual(done.state, S.SUCCEEDED, done.failure_reason + done.log_tail)
-        self.assertEqual(done.launcher_id, j.launcher_id)  # the same Slurm job, run twice
+        # The job's notes hold every Slurm state ergd saw ("slurm job N:
+        # STATE"), which tells why it would have submitted a new job.
+        notes = [ev.message for ev in self.ergd.stub.WatchJob(
+            S.WatchJobRequest(id=job_id), metadata=md(ALICE), timeout=60)
+            if ev.HasField("message")]
+        self.assertEqual(done.launcher_id, j.launcher_id, notes)  # the same Slurm job, run twice
         # Two starts in the progress file: the second at the checkpoint's step.
         with open(os.path.join(self.ergd.data, "jobs", job_id, "progress-1.jsonl")) as f:
             events = [json_format.Parse(line, W.WorkerEvent()) for line in f]
