@@ -679,6 +679,29 @@ def elongation_orientation(sand, cell_size_m, threshold_m, min_cells, min_aspect
             "bodies": len(rows), "rows": rows}
 
 
+def source_body(sand, cell_size_m, threshold_m, min_cells, source_m):
+    """The dune fed by a sand source (the fingering mode's dune): the body
+    thicker than `threshold_m` that holds the source's cell, else the one
+    nearest to it on the torus. Bodies that left the source (the seed pile
+    blown away as a dome) are not it. Returns a dict: axis (degrees in
+    [0, 180)), aspect (major over minor standard deviation), volume (m^3),
+    distance from the source (m), bodies found; or None without a body."""
+    ny, nx = sand.shape
+    sx, sy = source_m[0] / cell_size_m, source_m[1] / cell_size_m
+    bodies = dunes(sand, cell_size_m, threshold_m, min_cells)
+    best = None
+    for d in bodies:
+        dist = float(np.min(np.hypot(wrap_delta(d["ix"] + 0.5 - sx, nx),
+                                     wrap_delta(d["iy"] + 0.5 - sy, ny)))) * cell_size_m
+        if best is None or dist < best[0]:
+            best = (dist, d)
+    if best is None:
+        return None
+    axis, major, minor = body_elongation(best[1], sand, cell_size_m)
+    return {"axis_deg": axis, "aspect": major / minor if minor > 0 else float("inf"),
+            "volume_m3": best[1]["volume_m3"], "distance_m": best[0], "bodies": len(bodies)}
+
+
 def crest_orientation(height, cell_size_m):
     """Crest orientation (degrees in [0, 180)) of a field of ridges (the
     bed-instability mode), measured twice: from the strongest wavevector of

@@ -231,8 +231,10 @@ def word(ok):
 def combine(oks):
     """One law over several cases: FAIL if any fails, else UNRESOLVED if any
     is, else PASS."""
+    # None is UNRESOLVED; any other false value (numpy's False among them,
+    # which `is False` misses) fails.
     oks = list(oks)
-    if any(ok is False for ok in oks):
+    if any(ok is not None and not ok for ok in oks):
         return False
     return None if any(ok is None for ok in oks) else True
 
@@ -263,7 +265,9 @@ class Report:
         self.add(f"![{alt}](plots/{name})", "")
 
     def law(self, name, ok, measured):
-        self.summary.append((name, ok, measured))
+        # A plain bool (numpy's comparisons give numpy.bool_), so that the
+        # summary's `ok is True` counts it; None is UNRESOLVED.
+        self.summary.append((name, ok if ok is None or ok is NOT_RUN else bool(ok), measured))
 
 
 def wind_of(job):
@@ -1022,6 +1026,16 @@ def describe_units(job):
     return f"physical units ({what} {speed} m/s)" if speed else "physical units"
 
 
+def sand_source(job):
+    """Where a fingering scene's sand comes from (x, y in metres): the centre
+    of the disks that feed it, else of its first pile."""
+    feeds = [e["sand"] for e in job.get("events", []) if "sand" in e]
+    if feeds:
+        return float(feeds[-1]["x_m"]), float(feeds[-1]["y_m"])
+    p = job["layers"]["sand"]["piles"][0]
+    return float(p["x_m"]), float(p["y_m"])
+
+
 def describe_sand(job):
     """The initial sand and its sources, in words, for the report."""
     sand = job.get("layers", {}).get("sand", {})
@@ -1067,14 +1081,17 @@ def orientation_law(rep, T, scenes):
             + "Measured on the last snapshot: the crest orientation of the bed from the structure tensor "
             "of the height over the spectrum's dominant band, as in section 4 (the 2-D spectrum's "
             "strongest wavevector is listed too; on these domains its directions are harmonics "
-            "several degrees apart), the elongation of the fingers from the "
-            "central lobe of the periodic autocorrelation of the dunes' sand (thicker than "
-            f"{det['dune_sand_threshold_m']:g} m; lags above "
-            f"{O['autocorrelation_level']:g} of its peak; the volume-weighted mean axis of the elongated "
-            f"bodies thicker than {det['dune_sand_threshold_m']} m is listed too). An orientation is an "
+            "several degrees apart), the elongation of a finger from the second moments of the "
+            f"source's dune: the body of sand thicker than {det['dune_sand_threshold_m']:g} m that holds "
+            "the feed's centre (else the body nearest to it), since the mode's dune is the one the source "
+            "feeds and the seed pile, once blown off the source, leaves as a dome of its own. Listed too: the "
+            "central lobe of the periodic autocorrelation of all the sand thicker than "
+            f"{det['dune_sand_threshold_m']:g} m (lags above {O['autocorrelation_level']:g} of its peak), "
+            "which mixes the finger with such domes, and the volume-weighted mean axis of the elongated "
+            "bodies. An orientation is an "
             "axis (modulo 180 deg), in degrees counter-clockwise from x. The law holds when the measured "
             f"axis is within {tol:g} deg of the prediction and a pattern formed: the bed's relief grew "
-            f"and its coherence reached {O['min_coherence']:g}, the fingers' lobe is at least "
+            f"and its coherence reached {O['min_coherence']:g}, the source's dune is at least "
             f"{O['min_elongation']:g} times as long as wide. A bed's crests are a periodic pattern, so "
             "the torus admits only the crests across its lattice vectors (m / Lx, n / Ly) near the "
             "measured wavelength (docs/dune-forms.md, \"What a periodic domain can resolve\"); the "
@@ -1121,27 +1138,39 @@ def orientation_law(rep, T, scenes):
             # The dunes: sand thicker than the detection threshold (the
             # saltating sheet between them has streaks of its own).
             thick = np.where(last["sand"] > det["dune_sand_threshold_m"], last["sand"], 0.0)
-            measured, elong = M.autocorrelation_axis(thick, cell, O["autocorrelation_level"])
+            lobe_axis, lobe = M.autocorrelation_axis(thick, cell, O["autocorrelation_level"])
             bodies = M.elongation_orientation(last["sand"], cell, det["dune_sand_threshold_m"],
                                               det["dune_min_cells"], O["min_elongation"])
-            formed = elong >= O["min_elongation"] and bodies["bodies"] > 0
-            pattern = (f"lobe {elong:.2f} times as long as wide" if bodies["bodies"] else
-                       f"no dune: no body thicker than {det['dune_sand_threshold_m']:g} m")
-            also = (f"bodies {bodies['axis_deg']:.1f} ({bodies['measured']} of {bodies['bodies']})"
-                    if bodies["measured"] else f"bodies: none elongated ({bodies['bodies']} found)")
+            # The law's dune is the one the source feeds: the seed pile,
+            # once blown off the source, is a dome of its own, not a finger.
+            src = M.source_body(last["sand"], cell, det["dune_sand_threshold_m"], det["dune_min_cells"],
+                                sand_source(job))
+            if src is None:
+                measured, formed = float("nan"), False
+                pattern = f"no dune: no body thicker than {det['dune_sand_threshold_m']:g} m"
+            else:
+                measured, formed = src["axis_deg"], src["aspect"] >= O["min_elongation"]
+                where = ("at the source" if src["distance_m"] <= cell else
+                         f"nearest, {src['distance_m']:.0f} m from the source")
+                pattern = (f"the source's dune ({where}, {src['volume_m3']:.0f} m^3) "
+                           f"{src['aspect']:.2f} times as long as wide")
+            also = (f"all sand: lobe {lobe_axis:.1f} ({lobe:.2f} times as long as wide); "
+                    + (f"elongated bodies {bodies['axis_deg']:.1f} ({bodies['measured']} of {bodies['bodies']})"
+                       if bodies["measured"] else f"no body elongated ({bodies['bodies']} found)"))
             lattice = None
         diff = M.axis_difference(measured, pred)
         if not formed or bare > 0.0:
             ok = False
         elif lattice is None or lattice["gap_deg"] <= 0.5 * tol:
-            ok = diff <= tol
+            ok = bool(diff <= tol)
         else:
             # Crests farther off than the lattice alone can move them fail.
             ok = None if diff <= lattice["lattice_tolerance_deg"] else False
         row = {"name": job["name"], "mode": mode, "transport": transport_of(job),
                "theta": theta, "n": n, "primary": primary, "pred": pred, "other": other, "measured": measured,
                "diff": diff, "formed": formed, "bare": bare, "ok": ok, "height": height, "cell": cell,
-               "step": last["step"], "lattice": lattice}
+               "step": last["step"], "lattice": lattice,
+               "centre": sand_source(job) if mode == "finger" else None}
         rows.append(row)
         gap = ("-" if lattice is None else f"{lattice['gap_deg']:.1f} (nearest admissible "
                f"{lattice['nearest_deg']:.1f}; can move it {lattice['lattice_tolerance_deg']:.1f})")
@@ -1203,9 +1232,15 @@ def orientation_law(rep, T, scenes):
         ly, lx = (k * r["cell"] for k in r["height"].shape)
         # Metres on both axes at one scale, so that the axes' angles are true.
         ax.imshow(r["height"], origin="lower", extent=(0, lx, 0, ly), cmap="terrain", aspect="equal")
+        # A finger's axes through its source, a bed's through the middle.
+        cx, cy = r["centre"] if r["centre"] else (lx / 2, ly / 2)
         for a, style in ((r["pred"], "w--"), (r["measured"], "r-")):
+            if a != a:
+                continue
             u = 0.4 * min(lx, ly) * np.array([math.cos(math.radians(a)), math.sin(math.radians(a))])
-            ax.plot([lx / 2 - u[0], lx / 2 + u[0]], [ly / 2 - u[1], ly / 2 + u[1]], style, lw=1)
+            ax.plot([cx - u[0], cx + u[0]], [cy - u[1], cy + u[1]], style, lw=1)
+        ax.set_xlim(0, lx)
+        ax.set_ylim(0, ly)
         ax.set_title(f"{r['mode']} {r['theta']:g}/{r['n']:g} {r['transport'][:3].lower()}", fontsize=7)
         ax.set_xticks([])
         ax.set_yticks([])

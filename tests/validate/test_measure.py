@@ -450,6 +450,50 @@ class Orientation(unittest.TestCase):
         self.assertTrue(math.isnan(e["axis_deg"]))
 
 
+class SourceBody(unittest.TestCase):
+    """The fingering mode's dune is the body the source feeds, not the seed
+    pile that left it: measure.source_body picks the body holding the
+    source's cell (else the nearest one, across the seams)."""
+
+    def finger(self, x, y, n, cx, cy, deg, height=4.0, length=30.0, width=4.0):
+        a = math.radians(deg)
+        dx, dy = M.wrap_delta(x - cx, n), M.wrap_delta(y - cy, n)
+        u, v = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
+        return height * np.exp(-0.5 * ((u / length) ** 2 + (v / width) ** 2))
+
+    def test_the_finger_at_the_source_not_the_larger_dome(self):
+        n = 256
+        x, y = grid(n, n, 1.0)
+        # A finger at 60 deg through the source at (50.5, 70.5) m, and a dome
+        # three times its volume 130 m away: all the sand together is round.
+        sand = self.finger(x, y, n, 50.0, 70.0, 60.0)
+        sand += gaussian_pile(n, n, 1.0, 180.0, 170.0, 8.0, 16.0)
+        b = M.source_body(sand, 1.0, 0.3, 20, (50.5, 70.5))
+        self.assertEqual(b["bodies"], 2)
+        self.assertEqual(b["distance_m"], 0.0)
+        self.assertLess(M.axis_difference(b["axis_deg"], 60.0), 0.5)
+        self.assertGreater(b["aspect"], 5.0)
+        self.assertLess(b["volume_m3"], 0.5 * M.dunes(sand, 1.0, 0.3, 20)[0]["volume_m3"])
+        _, lobe = M.autocorrelation_axis(np.where(sand > 0.3, sand, 0.0), 1.0)
+        self.assertLess(lobe, 1.5)  # what the mixed measurement saw
+
+    def test_the_nearest_body_across_the_seam(self):
+        # The source sits in bare rock 10 m across the axis of a finger at
+        # 150 deg whose middle is at x = 2 m, on the other side of the x
+        # seam; a round pile lies 55 m away.
+        n = 128
+        x, y = grid(n, n, 1.0)
+        sand = self.finger(x, y, n, 2.0, 64.0, 150.0, length=20.0, width=3.0)
+        sand += gaussian_pile(n, n, 1.0, 70.0, 64.0, 4.0, 5.0)
+        b = M.source_body(sand, 1.0, 0.3, 20, (125.0, 64.0 - 10.0 * math.sin(math.radians(60.0))))
+        self.assertGreater(b["distance_m"], 0.0)
+        self.assertLess(b["distance_m"], 10.0)
+        self.assertLess(M.axis_difference(b["axis_deg"], 150.0), 0.5)
+
+    def test_no_sand_no_body(self):
+        self.assertIsNone(M.source_body(np.zeros((32, 32)), 1.0, 0.3, 20, (16.0, 16.0)))
+
+
 class Lattice(unittest.TestCase):
     """What a torus admits: wavelengths L / |(m, n)| and crests across the
     lattice vectors (docs/dune-forms.md, "What a periodic domain can resolve")."""
@@ -603,7 +647,20 @@ class OrientationSection(unittest.TestCase):
             dx, dy = M.wrap_delta(x - cx, 256), M.wrap_delta(y - cy, 256)
             u, v = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
             fingers += 4.0 * np.exp(-0.5 * ((u / 30.0) ** 2 + (v / 5.0) ** 2))
+        # The fed finger at the prediction beside the seed pile blown off as
+        # a round dome of more sand (the fingering law measures the former),
+        # and a finger across the prediction at its source beside an
+        # elongated body at the prediction that the source does not feed.
+        src = SourceBody()
+        dome = src.finger(x, y, 256, 60.0, 60.0, math.degrees(a)) + gaussian_pile(256, 256, 1.0, 180.0, 190.0, 8.0, 16.0)
+        across = (src.finger(x, y, 256, 60.0, 60.0, math.degrees(a) + 90.0)
+                  + src.finger(x, y, 256, 180.0, 180.0, math.degrees(a), height=8.0))
+        feed = {"piles": [{"x_m": 60, "y_m": 60, "height": 4, "radius_m": 20}]}
+        fed = lambda name, transport: dict(job(name, 140, 3, transport, sand=feed), events=[
+            {"step": 20, "sand": {"x_m": 60.5, "y_m": 60.5, "radius_m": 12, "height": 0.25}}])
         scenes = [
+            ("orientation_finger_140_3_d", [snap(dome, 0), snap(dome, 400)], fed("finger-dome", "EXPECTED")),
+            ("orientation_finger_140_3_a", [snap(across, 0), snap(across, 400)], fed("finger-across", "STOCHASTIC")),
             ("orientation_bed_120_2", [snap(bflat, 0, 2.0), snap(big, 400, 2.0)], bjob),
             ("orientation_bed_120_2_b", [snap(flat, 0), snap(wrong, 400)], job("bed-wrong", 120, 2, "STOCHASTIC")),
             ("orientation_finger_140_3", [snap(fingers, 0), snap(fingers, 400)], job("finger-ok", 140, 3, sand={"piles": [
@@ -622,11 +679,16 @@ class OrientationSection(unittest.TestCase):
                                          r"admissible 7[34]\.\d.*\| PASS \|$")
         self.assertRegex(rows["bed-wrong"], r"\| 73\.7 \| 39\.2 \| 40\.\d \| 33\.\d \|.*\| FAIL \|$")
         self.assertRegex(rows["finger-ok"], r"\| 26\.1 \| 81\.1 \| 26\.\d \| 0\.\d \|.*\| PASS \|$")
+        self.assertRegex(rows["finger-dome"], r"\| 26\.1 \| 81\.1 \| 26\.\d \| 0\.\d \| the source's dune "
+                                              r"\(at the source, \d+ m\^3\) [0-9.]+ times as long as wide \| "
+                                              r"all sand: lobe .*\| PASS \|$")
+        self.assertRegex(rows["finger-across"], r"\| 26\.1 \| 81\.1 \| 116\.\d \| 90\.0 \|.*\| FAIL \|$")
         verdicts = {name: ok for name, ok, _ in rep.summary}
         self.assertEqual(verdicts, {
             "Two-wind orientation, bed instability (EXPECTED)": True,
             "Two-wind orientation, bed instability (STOCHASTIC)": False,
-            "Two-wind orientation, fingering (EXPECTED)": True})
+            "Two-wind orientation, fingering (EXPECTED)": True,
+            "Two-wind orientation, fingering (STOCHASTIC)": False})
         # The 256 m ridges at the prediction: not judged.
         with tempfile.TemporaryDirectory() as tmp:
             rep = V.Report(Path(tmp))
