@@ -685,14 +685,15 @@ def source_body(sand, cell_size_m, threshold_m, min_cells, source_m):
     nearest to it on the torus. Bodies that left the source (the seed pile
     blown away as a dome) are not it. Returns a dict: axis (degrees in
     [0, 180)), aspect (major over minor standard deviation), volume (m^3),
-    distance from the source (m), bodies found; or None without a body."""
+    distance from the source's cell to the body's nearest cell (m, 0 when it
+    holds it), bodies found; or None without a body."""
     ny, nx = sand.shape
-    sx, sy = source_m[0] / cell_size_m, source_m[1] / cell_size_m
+    # The cell that holds the source (cell i spans [i, i + 1) cells).
+    sx, sy = math.floor(source_m[0] / cell_size_m) % nx, math.floor(source_m[1] / cell_size_m) % ny
     bodies = dunes(sand, cell_size_m, threshold_m, min_cells)
     best = None
     for d in bodies:
-        dist = float(np.min(np.hypot(wrap_delta(d["ix"] + 0.5 - sx, nx),
-                                     wrap_delta(d["iy"] + 0.5 - sy, ny)))) * cell_size_m
+        dist = float(np.min(np.hypot(wrap_delta(d["ix"] - sx, nx), wrap_delta(d["iy"] - sy, ny)))) * cell_size_m
         if best is None or dist < best[0]:
             best = (dist, d)
     if best is None:

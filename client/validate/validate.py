@@ -1150,7 +1150,7 @@ def orientation_law(rep, T, scenes):
                 pattern = f"no dune: no body thicker than {det['dune_sand_threshold_m']:g} m"
             else:
                 measured, formed = src["axis_deg"], src["aspect"] >= O["min_elongation"]
-                where = ("at the source" if src["distance_m"] <= cell else
+                where = ("at the source" if src["distance_m"] == 0.0 else
                          f"nearest, {src['distance_m']:.0f} m from the source")
                 pattern = (f"the source's dune ({where}, {src['volume_m3']:.0f} m^3) "
                            f"{src['aspect']:.2f} times as long as wide")

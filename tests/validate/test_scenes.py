@@ -49,12 +49,38 @@ class Scenes(unittest.TestCase):
                 self.assertEqual(dict(expected, name=None, transport=None),
                                  dict(stochastic, name=None, transport=None))
 
+    def test_the_fingering_scenes_are_one_scene_in_both_modes(self):
+        # Each STOCHASTIC fed source is its EXPECTED twin at a quarter of the
+        # step (1/160 of the cell, where the stochastic form converges; the
+        # deterministic one does at 1/40): the same years, wind periods and
+        # feed in physical time, everything else equal.
+        for case in ("120_1", "140_2", "160_5"):
+            with self.subTest(case=case):
+                stochastic = json.loads((SCENES / "full" / f"orientation_finger_{case}.json").read_text())
+                expected = json.loads((SCENES / "full" / f"orientation_finger_{case}_expected.json").read_text())
+                self.assertEqual((stochastic["transport"], expected["transport"]), ("STOCHASTIC", "EXPECTED"))
+                self.assertEqual(expected["name"], stochastic["name"] + "-expected")
+                self.assertEqual(stochastic["model"]["slab_m"] * 4, expected["model"]["slab_m"])
+                for key in ("steps", "snapshot_every"):
+                    self.assertEqual(stochastic["run"][key], 4 * expected["run"][key])
+                b = stochastic["wind"]["bidirectional"]
+                self.assertEqual(b["period_steps"], 4 * expected["wind"]["bidirectional"]["period_steps"])
+                self.assertEqual(stochastic["events"],
+                                 [dict(e, step=4 * e["step"]) for e in expected["events"]])
+                same = lambda j: dict(j, name=None, transport=None, events=None, run=None,
+                                      model=dict(j["model"], slab_m=None),
+                                      wind=dict(j["wind"], bidirectional=dict(j["wind"]["bidirectional"],
+                                                                              period_steps=None)))
+                self.assertEqual(same(stochastic), same(expected))
+
     def test_the_fed_sources_supply_the_law_s_flux_across_their_width(self):
-        # The EXPECTED fingering scenes (physical units) feed their source
-        # with what a saturated flux carries across its width, Q_sat 2 R:
-        # the feed is set from the flux law and the calibration that
-        # `erg check` prints, not chosen for the orientation it gives.
-        for p in sorted((SCENES / "full").glob("orientation_finger_*_expected.json")):
+        # The fingering scenes (physical units) feed their source with what
+        # a saturated flux carries across its width, Q_sat 2 R: the feed is
+        # set from the flux law and the calibration that `erg check`
+        # prints, not chosen for the orientation it gives.
+        paths = sorted((SCENES / "full").glob("orientation_finger_*.json"))
+        self.assertEqual(len(paths), 6)
+        for p in paths:
             with self.subTest(scene=p.name):
                 job = json.loads(p.read_text())
                 r = subprocess.run([ERG, "check", str(p)], capture_output=True, text=True,
