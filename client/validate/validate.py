@@ -993,6 +993,123 @@ def isotropy_law(rep, T, scenes):
                 + (f"; pile lost at {', '.join(lost)} deg" if lost else ""))
 
 
+def bed_isotropy_law(rep, T, scenes):
+    """scenes: (name, snapshots, job): one bed of sand under one wind at
+    angles to the grid, in each transport mode: the crests relative to the
+    wind and the wavelength must not depend on the angle."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    I = T["isotropy"]
+    O = T["orientation"]
+    tol, wtol = I["max_crest_difference_deg"], I["max_wavelength_difference"]
+    rep.add("## 11. Isotropy of a bed: transverse crests at any angle to the grid", "")
+    first_job = scenes[0][2]
+    d = first_job["domain"]
+    rep.add(f"The same bed under the same wind, blowing at "
+            + ", ".join(sorted({f"{wind_of(j):g}" for _, _, j in scenes}, key=float))
+            + " deg to the grid's x axis, in each transport mode: "
+            + "; ".join(sorted({f"{transport_of(j)}: " + describe_layers(j) for _, _, j in scenes}))
+            + ". Measured on the last snapshot as in section 10: the crest orientation from the structure "
+            "tensor of the height over the spectrum's dominant band, the wavelength as the band's mean. "
+            "Each angle is compared with the same mode's scene at 0 deg: the crests relative to the wind "
+            f"within {tol:g} deg and the wavelength within {100 * wtol:g}%. A pattern must have formed (the "
+            f"relief grew, coherence at least {O['min_coherence']:g}) on a bed that kept sand everywhere. "
+            "The torus admits only some crests and wavelengths (docs/dune-forms.md, \"What a periodic "
+            "domain can resolve\"): a pair is judged where the admissible crests near each scene's are at "
+            f"most {0.5 * tol:g} deg apart and the admissible wavelengths (the modes across the shorter "
+            f"side) at most {50 * wtol:g}% apart; elsewhere it is UNRESOLVED, unless the difference exceeds "
+            "the tolerance plus half of both scenes' gaps, which the lattice alone cannot make.", "")
+    rep.add("| scene | transport | wind (deg) | crest (deg) | crest - wind (deg) | coherence | wavelength (m) "
+            "| relief, first -> last (m) | lattice: crest gap (deg), wavelength spacing | against 0 deg: "
+            "crest, wavelength | verdict |", "|---|---|---|---|---|---|---|---|---|---|---|")
+    rows = []
+    for name, snaps, job in scenes:
+        first, last = snaps[0], snaps[-1]
+        cell = last["cell_size_m"]
+        h = last["sand"] + last["bedrock"]
+        ny, nx = h.shape
+        wind = wind_of(job)
+        co = M.crest_orientation(h, cell)
+        relief = lambda s: float((s["sand"] + s["bedrock"]).max() - (s["sand"] + s["bedrock"]).min())
+        lat = M.orientation_resolution(co["wavelength_m"], nx * cell, ny * cell, (wind + 90.0) % 180.0, tol)
+        rows.append({"name": job["name"], "mode": transport_of(job), "wind": wind, "h": h, "cell": cell,
+                     "crest": co["tensor_deg"], "rel": (co["tensor_deg"] - wind) % 180.0,
+                     "coherence": co["coherence"], "wavelength": co["wavelength_m"],
+                     "relief": (relief(first), relief(last)),
+                     "formed": relief(last) > relief(first) and co["coherence"] >= O["min_coherence"],
+                     "bare": max(M.bare_fraction(s["sand"]) for s in snaps),
+                     "gap": lat["gap_deg"],
+                     "spacing": M.wavelength_resolution(co["wavelength_m"], min(nx, ny) * cell)})
+    laws = []
+    for mode in sorted({r["mode"] for r in rows}):
+        rs = sorted((r for r in rows if r["mode"] == mode), key=lambda r: r["wind"])
+        ref = rs[0]
+        for r in rs:
+            r["d_crest"] = M.axis_difference(r["rel"], ref["rel"])
+            r["d_wl"] = abs(r["wavelength"] / ref["wavelength"] - 1.0)
+            if not (r["formed"] and ref["formed"]) or r["bare"] > 0.0 or ref["bare"] > 0.0:
+                r["ok"] = False
+            elif max(r["gap"], ref["gap"]) <= 0.5 * tol and max(r["spacing"], ref["spacing"]) <= 0.5 * wtol:
+                r["ok"] = bool(r["d_crest"] <= tol and r["d_wl"] <= wtol)
+            elif (r["d_crest"] > tol + 0.5 * (r["gap"] + ref["gap"])
+                  or r["d_wl"] > wtol + 0.5 * (r["spacing"] + ref["spacing"])):
+                r["ok"] = False  # more than the lattice can move a pattern that obeys
+            else:
+                r["ok"] = None
+        judged = rs[1:]
+        ok = combine(r["ok"] for r in judged) if judged else None
+        worst_c = max((r["d_crest"] for r in judged), default=float("nan"))
+        worst_w = max((r["d_wl"] for r in judged), default=float("nan"))
+        laws.append((mode, ok, worst_c, worst_w, rs))
+    for mode, ok, worst_c, worst_w, rs in laws:
+        for r in rs:
+            rep.add(f"| {r['name']} | {r['mode']} | {r['wind']:g} | {r['crest']:.1f} | {r['rel']:.1f} | "
+                    f"{r['coherence']:.2f} | {r['wavelength']:.1f} | {r['relief'][0]:.1f} -> {r['relief'][1]:.1f}"
+                    + ("" if r["formed"] else " (no pattern)")
+                    + (f"; bare rock in up to {100 * r['bare']:.1f}%" if r["bare"] > 0 else "")
+                    + f" | {r['gap']:.1f}, {100 * r['spacing']:.1f}% | "
+                    + ("the reference" if r is rs[0] else f"{r['d_crest']:.1f} deg, {100 * r['d_wl']:.1f}%")
+                    + f" | {'-' if r is rs[0] else word(r['ok'])} |")
+    rep.add("")
+    for mode, ok, worst_c, worst_w, rs in laws:
+        rep.add(f"{mode}: {verdict(ok)}: crests relative to the wind within {worst_c:.1f} deg of the 0 deg "
+                f"scene's (allowed {tol:g}), wavelengths within {100 * worst_w:.1f}% (allowed {100 * wtol:g}%)"
+                + ("; the torus does not resolve the tolerances in " + ", ".join(
+                    r["name"] for r in rs[1:] if r["ok"] is None) if any(r["ok"] is None for r in rs[1:]) else "")
+                + ".", "")
+    ncol = max(len(rs) for *_, rs in laws)
+    fig, axes = plt.subplots(len(laws), ncol, figsize=(2.4 * ncol, 2.6 * len(laws)), squeeze=False)
+    for row_axes, (mode, _, _, _, rs) in zip(axes, laws):
+        for ax in row_axes[len(rs):]:
+            ax.axis("off")
+        for ax, r in zip(row_axes, rs):
+            ly, lx = (k * r["cell"] for k in r["h"].shape)
+            ax.imshow(r["h"], origin="lower", extent=(0, lx, 0, ly), cmap="terrain", aspect="equal")
+            u = 0.4 * min(lx, ly)
+            for a, style in (((r["wind"] + 90.0) % 180.0, "w--"), (r["crest"], "r-")):
+                c, s_ = math.cos(math.radians(a)), math.sin(math.radians(a))
+                ax.plot([lx / 2 - u * c, lx / 2 + u * c], [ly / 2 - u * s_, ly / 2 + u * s_], style, lw=1)
+            w = math.radians(r["wind"])
+            ax.annotate("", xy=(0.15 * lx + 0.12 * lx * math.cos(w), 0.85 * ly + 0.12 * lx * math.sin(w)),
+                        xytext=(0.15 * lx, 0.85 * ly), arrowprops={"arrowstyle": "->", "color": "k"})
+            ax.set_xlim(0, lx)
+            ax.set_ylim(0, ly)
+            ax.set_title(f"{r['wind']:g} deg, {r['mode'][:3].lower()}", fontsize=7)
+            ax.set_xticks([])
+            ax.set_yticks([])
+    rep.plot(fig, "isotropy_beds.png", "beds under one wind at angles to the grid (arrow: the wind; "
+             "dashed: across it; solid: the measured crests)", dpi=80)
+    rep.add(f"Source: {I['bed_source']}.", "")
+    for mode, ok, worst_c, worst_w, rs in laws:
+        winds = ", ".join(f"{r['wind']:g}" for r in rs)
+        unresolved = sum(r["ok"] is None for r in rs[1:])
+        rep.law(f"Isotropy: transverse crests at any angle ({mode})", ok,
+                f"crests within {worst_c:.1f} deg, wavelengths within {100 * worst_w:.1f}% of the 0 deg "
+                f"scene's over {winds} deg"
+                + (f"; {unresolved} on a torus too small to resolve it" if unresolved else ""))
+
+
 def orientation_case(job):
     """The orientation scene's bidirectional wind: (primary, divergence, flux
     ratio, the winds for measure's predictions)."""
@@ -1329,7 +1446,10 @@ def law_scenes(names, jobs):
                                  ("Migration rate against Tarfaya", "6. Migration rate in physical units")):
                 laws[f"{law} ({transport})"] = (section, [n])
             continue
-        if n.startswith("isotropy"):
+        if n.startswith("isotropy_bed"):
+            law = (f"Isotropy: transverse crests at any angle ({transport})",
+                   "11. Isotropy of a bed: transverse crests at any angle to the grid")
+        elif n.startswith("isotropy"):
             law = (f"Isotropy: pile migrates with the wind ({transport})",
                    "9. Isotropy: a pile's migration at any angle to the grid")
         elif n.startswith("orientation_"):
@@ -1400,6 +1520,7 @@ def main():
     jobs, dirs, timings = {}, {}, {}
     names = list(SCENES) + [n for n in OPTIONAL + ISOTROPY if (scene_dir / f"{n}.json").exists()]
     names += sorted(p.stem for p in scene_dir.glob("orientation_*.json"))
+    names += sorted(p.stem for p in scene_dir.glob("isotropy_bed_*.json"))
     for name in names:
         jp = scene_dir / f"{name}.json"
         jobs[name] = json.loads(jp.read_text())
@@ -1436,10 +1557,14 @@ def main():
         slip_face_law(rep, T, bsnaps[bnames[0]], finals, repose[bnames[0]], jobs[bnames[0]])
     if tnames:
         transverse_law(rep, T, [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in tnames])
-    inames = [n for n in ran if n.startswith("isotropy")]
+    inames = [n for n in ran if n.startswith("isotropy") and not n.startswith("isotropy_bed")]
     isnaps = {n: snapshots(dirs[n]) for n in inames}
     if inames:
         isotropy_law(rep, T, [(jobs[n]["name"], isnaps[n], jobs[n]) for n in inames])
+    ibnames = [n for n in ran if n.startswith("isotropy_bed")]
+    ibsnaps = {n: snapshots(dirs[n]) for n in ibnames}
+    if ibnames:
+        bed_isotropy_law(rep, T, [(jobs[n]["name"], ibsnaps[n], jobs[n]) for n in ibnames])
     onames = [n for n in ran if n.startswith("orientation_")]
     osnaps = {n: snapshots(dirs[n]) for n in onames}
     if onames:
@@ -1447,6 +1572,7 @@ def main():
     mass_law(rep, T, [(jobs[n]["name"], bsnaps[n], jobs[n]) for n in bnames] +
              [(jobs[n]["name"], ts[n], jobs[n]) for n in ts] +
              [(jobs[n]["name"], isnaps[n], jobs[n]) for n in inames] +
+             [(jobs[n]["name"], ibsnaps[n], jobs[n]) for n in ibnames] +
              [(jobs[n]["name"], osnaps[n], jobs[n]) for n in onames])
     bjob = jobs["barchans"]
     flux_law(rep, T, calibrate(scene_dir / "barchans.json", None, 1) if physical(bjob) else None, bjob)

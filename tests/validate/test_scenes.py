@@ -73,6 +73,31 @@ class Scenes(unittest.TestCase):
                                                                               period_steps=None)))
                 self.assertEqual(same(stochastic), same(expected))
 
+    def test_the_bed_isotropy_scenes_are_one_bed_turned(self):
+        # Section 11 compares one bed under one wind turned to 0, 23, 37 and
+        # 45 deg: the scenes differ in the wind's direction alone, and each
+        # STOCHASTIC scene is its EXPECTED twin at a quarter of the step.
+        expected = {a: json.loads((SCENES / "full" / f"isotropy_bed_{a:02d}_expected.json").read_text())
+                    for a in (0, 23, 37, 45)}
+        stochastic = {a: json.loads((SCENES / "full" / f"isotropy_bed_{a:02d}.json").read_text())
+                      for a in (0, 23, 37, 45)}
+        for a in (0, 23, 37, 45):
+            with self.subTest(angle=a):
+                e, st = expected[a], stochastic[a]
+                self.assertEqual(e["wind"]["constant"]["direction_deg"], a)
+                self.assertEqual(st["wind"], e["wind"])
+                turned = lambda j: dict(j, name=None, wind=dict(j["wind"], constant=dict(
+                    j["wind"]["constant"], direction_deg=None)))
+                self.assertEqual(turned(e), turned(expected[0]))
+                self.assertEqual((st["transport"], e["transport"]), ("STOCHASTIC", "EXPECTED"))
+                self.assertEqual(e["name"], st["name"] + "-expected")
+                self.assertEqual(st["model"]["slab_m"] * 4, e["model"]["slab_m"])
+                for key in ("steps", "snapshot_every"):
+                    self.assertEqual(st["run"][key], 4 * e["run"][key])
+                quarter = lambda j: dict(j, name=None, transport=None, run=None,
+                                         model=dict(j["model"], slab_m=None))
+                self.assertEqual(quarter(st), quarter(e))
+
     def test_the_fed_sources_supply_the_law_s_flux_across_their_width(self):
         # The fingering scenes (physical units) feed their source with what
         # a saturated flux carries across its width, Q_sat 2 R: the feed is
