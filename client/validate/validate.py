@@ -1004,8 +1004,6 @@ def bed_isotropy_law(rep, T, scenes):
     O = T["orientation"]
     tol, wtol = I["max_crest_difference_deg"], I["max_wavelength_difference"]
     rep.add("## 11. Isotropy of a bed: transverse crests at any angle to the grid", "")
-    first_job = scenes[0][2]
-    d = first_job["domain"]
     rep.add(f"The same bed under the same wind, blowing at "
             + ", ".join(sorted({f"{wind_of(j):g}" for _, _, j in scenes}, key=float))
             + " deg to the grid's x axis, in each transport mode: "

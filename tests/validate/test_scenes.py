@@ -49,6 +49,15 @@ class Scenes(unittest.TestCase):
                 self.assertEqual(dict(expected, name=None, transport=None),
                                  dict(stochastic, name=None, transport=None))
 
+    def assert_quarter_step_twins(self, stochastic, expected):
+        """The STOCHASTIC scene is named and run as its EXPECTED twin at a
+        quarter of the step: four times the steps over the same years."""
+        self.assertEqual((stochastic["transport"], expected["transport"]), ("STOCHASTIC", "EXPECTED"))
+        self.assertEqual(expected["name"], stochastic["name"] + "-expected")
+        self.assertEqual(stochastic["model"]["slab_m"] * 4, expected["model"]["slab_m"])
+        for key in ("steps", "snapshot_every"):
+            self.assertEqual(stochastic["run"][key], 4 * expected["run"][key])
+
     def test_the_fingering_scenes_are_one_scene_in_both_modes(self):
         # Each STOCHASTIC fed source is its EXPECTED twin at a quarter of the
         # step (1/160 of the cell, where the stochastic form converges; the
@@ -58,11 +67,7 @@ class Scenes(unittest.TestCase):
             with self.subTest(case=case):
                 stochastic = json.loads((SCENES / "full" / f"orientation_finger_{case}.json").read_text())
                 expected = json.loads((SCENES / "full" / f"orientation_finger_{case}_expected.json").read_text())
-                self.assertEqual((stochastic["transport"], expected["transport"]), ("STOCHASTIC", "EXPECTED"))
-                self.assertEqual(expected["name"], stochastic["name"] + "-expected")
-                self.assertEqual(stochastic["model"]["slab_m"] * 4, expected["model"]["slab_m"])
-                for key in ("steps", "snapshot_every"):
-                    self.assertEqual(stochastic["run"][key], 4 * expected["run"][key])
+                self.assert_quarter_step_twins(stochastic, expected)
                 b = stochastic["wind"]["bidirectional"]
                 self.assertEqual(b["period_steps"], 4 * expected["wind"]["bidirectional"]["period_steps"])
                 self.assertEqual(stochastic["events"],
@@ -89,11 +94,7 @@ class Scenes(unittest.TestCase):
                 turned = lambda j: dict(j, name=None, wind=dict(j["wind"], constant=dict(
                     j["wind"]["constant"], direction_deg=None)))
                 self.assertEqual(turned(e), turned(expected[0]))
-                self.assertEqual((st["transport"], e["transport"]), ("STOCHASTIC", "EXPECTED"))
-                self.assertEqual(e["name"], st["name"] + "-expected")
-                self.assertEqual(st["model"]["slab_m"] * 4, e["model"]["slab_m"])
-                for key in ("steps", "snapshot_every"):
-                    self.assertEqual(st["run"][key], 4 * e["run"][key])
+                self.assert_quarter_step_twins(st, e)
                 quarter = lambda j: dict(j, name=None, transport=None, run=None,
                                          model=dict(j["model"], slab_m=None))
                 self.assertEqual(quarter(st), quarter(e))
