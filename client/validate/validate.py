@@ -993,6 +993,32 @@ def isotropy_law(rep, T, scenes):
                 + (f"; pile lost at {', '.join(lost)} deg" if lost else ""))
 
 
+def relief(snap):
+    """The height's range over the torus (m)."""
+    h = snap["sand"] + snap["bedrock"]
+    return float(h.max() - h.min())
+
+
+def height_panel(ax, height, cell, axes_deg, title, centre=None):
+    """One heightfield in metres on both axes at one scale (so that drawn
+    angles are true), with lines through `centre` (default: the middle) at
+    each (angle in degrees, matplotlib style) of `axes_deg`; nan angles are
+    left out."""
+    ly, lx = (k * cell for k in height.shape)
+    ax.imshow(height, origin="lower", extent=(0, lx, 0, ly), cmap="terrain", aspect="equal")
+    cx, cy = centre if centre else (lx / 2, ly / 2)
+    for a, style in axes_deg:
+        if a != a:
+            continue
+        u = 0.4 * min(lx, ly) * np.array([math.cos(math.radians(a)), math.sin(math.radians(a))])
+        ax.plot([cx - u[0], cx + u[0]], [cy - u[1], cy + u[1]], style, lw=1)
+    ax.set_xlim(0, lx)
+    ax.set_ylim(0, ly)
+    ax.set_title(title, fontsize=7)
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+
 def bed_isotropy_law(rep, T, scenes):
     """scenes: (name, snapshots, job): one bed of sand under one wind at
     angles to the grid, in each transport mode: the crests relative to the
@@ -1029,7 +1055,6 @@ def bed_isotropy_law(rep, T, scenes):
         ny, nx = h.shape
         wind = wind_of(job)
         co = M.crest_orientation(h, cell)
-        relief = lambda s: float((s["sand"] + s["bedrock"]).max() - (s["sand"] + s["bedrock"]).min())
         lat = M.orientation_resolution(co["wavelength_m"], nx * cell, ny * cell, (wind + 90.0) % 180.0, tol)
         rows.append({"name": job["name"], "mode": transport_of(job), "wind": wind, "h": h, "cell": cell,
                      "crest": co["tensor_deg"], "rel": (co["tensor_deg"] - wind) % 180.0,
@@ -1082,20 +1107,12 @@ def bed_isotropy_law(rep, T, scenes):
         for ax in row_axes[len(rs):]:
             ax.axis("off")
         for ax, r in zip(row_axes, rs):
+            height_panel(ax, r["h"], r["cell"], (((r["wind"] + 90.0) % 180.0, "w--"), (r["crest"], "r-")),
+                         f"{r['wind']:g} deg, {r['mode'][:3].lower()}")
             ly, lx = (k * r["cell"] for k in r["h"].shape)
-            ax.imshow(r["h"], origin="lower", extent=(0, lx, 0, ly), cmap="terrain", aspect="equal")
-            u = 0.4 * min(lx, ly)
-            for a, style in (((r["wind"] + 90.0) % 180.0, "w--"), (r["crest"], "r-")):
-                c, s_ = math.cos(math.radians(a)), math.sin(math.radians(a))
-                ax.plot([lx / 2 - u * c, lx / 2 + u * c], [ly / 2 - u * s_, ly / 2 + u * s_], style, lw=1)
             w = math.radians(r["wind"])
             ax.annotate("", xy=(0.15 * lx + 0.12 * lx * math.cos(w), 0.85 * ly + 0.12 * lx * math.sin(w)),
                         xytext=(0.15 * lx, 0.85 * ly), arrowprops={"arrowstyle": "->", "color": "k"})
-            ax.set_xlim(0, lx)
-            ax.set_ylim(0, ly)
-            ax.set_title(f"{r['wind']:g} deg, {r['mode'][:3].lower()}", fontsize=7)
-            ax.set_xticks([])
-            ax.set_yticks([])
     rep.plot(fig, "isotropy_beds.png", "beds under one wind at angles to the grid (arrow: the wind; "
              "dashed: across it; solid: the measured crests)", dpi=80)
     rep.add(f"Source: {I['bed_source']}.", "")
@@ -1230,9 +1247,9 @@ def orientation_law(rep, T, scenes):
         first, last = snaps[0], snaps[-1]
         cell = last["cell_size_m"]
         height = last["sand"] + last["bedrock"]
-        relief = lambda s: float((s["sand"] + s["bedrock"]).max() - (s["sand"] + s["bedrock"]).min())
         if mode == "bed":
             pred, other = bed_pred, finger_pred
+            centre = None
             co = M.crest_orientation(height, cell)
             measured = co["tensor_deg"]
             formed = relief(last) > relief(first) and co["coherence"] >= O["min_coherence"]
@@ -1258,8 +1275,8 @@ def orientation_law(rep, T, scenes):
                                               det["dune_min_cells"], O["min_elongation"])
             # The law's dune is the one the source feeds: the seed pile,
             # once blown off the source, is a dome of its own, not a finger.
-            src = M.source_body(last["sand"], cell, det["dune_sand_threshold_m"], det["dune_min_cells"],
-                                sand_source(job))
+            centre = sand_source(job)
+            src = M.source_body(last["sand"], cell, det["dune_sand_threshold_m"], det["dune_min_cells"], centre)
             if src is None:
                 measured, formed = float("nan"), False
                 pattern = f"no dune: no body thicker than {det['dune_sand_threshold_m']:g} m"
@@ -1285,7 +1302,7 @@ def orientation_law(rep, T, scenes):
                "theta": theta, "n": n, "primary": primary, "pred": pred, "other": other, "measured": measured,
                "diff": diff, "formed": formed, "bare": bare, "ok": ok, "height": height, "cell": cell,
                "step": last["step"], "lattice": lattice,
-               "centre": sand_source(job) if mode == "finger" else None}
+               "centre": centre}
         rows.append(row)
         gap = ("-" if lattice is None else f"{lattice['gap_deg']:.1f} (nearest admissible "
                f"{lattice['nearest_deg']:.1f}; can move it {lattice['lattice_tolerance_deg']:.1f})")
@@ -1344,21 +1361,9 @@ def orientation_law(rep, T, scenes):
     for ax in axes.ravel()[len(rows):]:
         ax.axis("off")
     for ax, r in zip(axes.ravel(), rows):
-        ly, lx = (k * r["cell"] for k in r["height"].shape)
-        # Metres on both axes at one scale, so that the axes' angles are true.
-        ax.imshow(r["height"], origin="lower", extent=(0, lx, 0, ly), cmap="terrain", aspect="equal")
         # A finger's axes through its source, a bed's through the middle.
-        cx, cy = r["centre"] if r["centre"] else (lx / 2, ly / 2)
-        for a, style in ((r["pred"], "w--"), (r["measured"], "r-")):
-            if a != a:
-                continue
-            u = 0.4 * min(lx, ly) * np.array([math.cos(math.radians(a)), math.sin(math.radians(a))])
-            ax.plot([cx - u[0], cx + u[0]], [cy - u[1], cy + u[1]], style, lw=1)
-        ax.set_xlim(0, lx)
-        ax.set_ylim(0, ly)
-        ax.set_title(f"{r['mode']} {r['theta']:g}/{r['n']:g} {r['transport'][:3].lower()}", fontsize=7)
-        ax.set_xticks([])
-        ax.set_yticks([])
+        height_panel(ax, r["height"], r["cell"], ((r["pred"], "w--"), (r["measured"], "r-")),
+                     f"{r['mode']} {r['theta']:g}/{r['n']:g} {r['transport'][:3].lower()}", r["centre"])
     rep.plot(fig, "orientation_fields.png", "orientation scenes, last step", dpi=80)
     rep.add(f"Source: {O['source']}.", "")
 

@@ -31,6 +31,16 @@ def gaussian_pile(nx, ny, cell, cx, cy, height, sigma):
     return height * np.exp(-(dx * dx + dy * dy) / (2 * sigma * sigma))
 
 
+def ridge(x, y, n, cx, cy, deg, height, length, width):
+    """An elliptical Gaussian ridge on an n x n torus of 1 m cells: centred at
+    (cx, cy), its long axis at `deg`, standard deviations `length` along it
+    and `width` across it."""
+    a = math.radians(deg)
+    dx, dy = M.wrap_delta(x - cx, n), M.wrap_delta(y - cy, n)
+    u, v = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
+    return height * np.exp(-0.5 * ((u / length) ** 2 + (v / width) ** 2))
+
+
 class Spectrum(unittest.TestCase):
     def test_transverse_sinusoid_along_x(self):
         # Crests along y, wind along x: 6 wavelengths of 32 m on 192 m.
@@ -423,14 +433,9 @@ class Orientation(unittest.TestCase):
         # elongated: the axis is 39 deg.
         nx = ny = 160
         x, y = grid(nx, ny, 1.0)
-        a = math.radians(39.0)
         sand = np.zeros((ny, nx))
         for cx, cy in ((40.0, 40.0), (120.0, 60.0), (2.0, 150.0), (90.0, 125.0)):
-            dx = M.wrap_delta(x - cx, nx)
-            dy = M.wrap_delta(y - cy, ny)
-            u = dx * math.cos(a) + dy * math.sin(a)
-            v = -dx * math.sin(a) + dy * math.cos(a)
-            sand += 4.0 * np.exp(-0.5 * ((u / 12.0) ** 2 + (v / 3.0) ** 2))
+            sand += ridge(x, y, nx, cx, cy, 39.0, 4.0, 12.0, 3.0)
         sand += 4.0 * np.exp(-0.5 * ((M.wrap_delta(x - 130.0, nx) ** 2
                                       + M.wrap_delta(y - 130.0, ny) ** 2) / 9.0))
         e = M.elongation_orientation(sand, 1.0, 0.3, 20)
@@ -455,18 +460,12 @@ class SourceBody(unittest.TestCase):
     pile that left it: measure.source_body picks the body holding the
     source's cell (else the nearest one, across the seams)."""
 
-    def finger(self, x, y, n, cx, cy, deg, height=4.0, length=30.0, width=4.0):
-        a = math.radians(deg)
-        dx, dy = M.wrap_delta(x - cx, n), M.wrap_delta(y - cy, n)
-        u, v = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
-        return height * np.exp(-0.5 * ((u / length) ** 2 + (v / width) ** 2))
-
     def test_the_finger_at_the_source_not_the_larger_dome(self):
         n = 256
         x, y = grid(n, n, 1.0)
         # A finger at 60 deg through the source at (50.5, 70.5) m, and a dome
         # three times its volume 130 m away: all the sand together is round.
-        sand = self.finger(x, y, n, 50.0, 70.0, 60.0)
+        sand = ridge(x, y, n, 50.0, 70.0, 60.0, 4.0, 30.0, 4.0)
         sand += gaussian_pile(n, n, 1.0, 180.0, 170.0, 8.0, 16.0)
         b = M.source_body(sand, 1.0, 0.3, 20, (50.5, 70.5))
         self.assertEqual(b["bodies"], 2)
@@ -483,7 +482,7 @@ class SourceBody(unittest.TestCase):
         # seam; a round pile lies 55 m away.
         n = 128
         x, y = grid(n, n, 1.0)
-        sand = self.finger(x, y, n, 2.0, 64.0, 150.0, length=20.0, width=3.0)
+        sand = ridge(x, y, n, 2.0, 64.0, 150.0, 4.0, 20.0, 3.0)
         sand += gaussian_pile(n, n, 1.0, 70.0, 64.0, 4.0, 5.0)
         b = M.source_body(sand, 1.0, 0.3, 20, (125.0, 64.0 - 10.0 * math.sin(math.radians(60.0))))
         self.assertGreater(b["distance_m"], 0.0)
@@ -701,20 +700,16 @@ class OrientationSection(unittest.TestCase):
         # wavevector (-6, 7) at 130.60 deg, crests at 40.60 deg.
         wrong = 3.0 + 2.0 * np.sin(2 * math.pi * (-6 * x + 7 * y) / 256.0)
         # Fingers at theta = 140, N = 3 (26.13 deg).
-        a = math.radians(M.fingering_orientation(M.two_winds(0, 140, 3)))
+        a = M.fingering_orientation(M.two_winds(0, 140, 3))
         fingers = np.zeros_like(x)
         for cx, cy in ((60.0, 60.0), (190.0, 80.0), (100.0, 200.0)):
-            dx, dy = M.wrap_delta(x - cx, 256), M.wrap_delta(y - cy, 256)
-            u, v = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
-            fingers += 4.0 * np.exp(-0.5 * ((u / 30.0) ** 2 + (v / 5.0) ** 2))
+            fingers += ridge(x, y, 256, cx, cy, a, 4.0, 30.0, 5.0)
         # The fed finger at the prediction beside the seed pile blown off as
         # a round dome of more sand (the fingering law measures the former),
         # and a finger across the prediction at its source beside an
         # elongated body at the prediction that the source does not feed.
-        src = SourceBody()
-        dome = src.finger(x, y, 256, 60.0, 60.0, math.degrees(a)) + gaussian_pile(256, 256, 1.0, 180.0, 190.0, 8.0, 16.0)
-        across = (src.finger(x, y, 256, 60.0, 60.0, math.degrees(a) + 90.0)
-                  + src.finger(x, y, 256, 180.0, 180.0, math.degrees(a), height=8.0))
+        dome = ridge(x, y, 256, 60.0, 60.0, a, 4.0, 30.0, 4.0) + gaussian_pile(256, 256, 1.0, 180.0, 190.0, 8.0, 16.0)
+        across = ridge(x, y, 256, 60.0, 60.0, a + 90.0, 4.0, 30.0, 4.0) + ridge(x, y, 256, 180.0, 180.0, a, 8.0, 30.0, 4.0)
         feed = {"piles": [{"x_m": 60, "y_m": 60, "height": 4, "radius_m": 20}]}
         fed = lambda name, transport: dict(job(name, 140, 3, transport, sand=feed), events=[
             {"step": 20, "sand": {"x_m": 60.5, "y_m": 60.5, "radius_m": 12, "height": 0.25}}])
