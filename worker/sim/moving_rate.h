@@ -1,12 +1,24 @@
 // SPDX-License-Identifier: Apache-2.0
-// The steps/s and ETA of progress events. A run's rate changes: the first
-// steps pay for setup and for the avalanching of the initial layers, and
-// snapshots and checkpoints stall a step now and then. The mean since the
-// start carries those costs for the whole run (an ETA of hours in the first
-// seconds of a one-minute job), so the rate here is measured over a moving
-// window of the most recent steps: the last max(kMinWindowS, kWindowFraction
-// x elapsed) seconds, long enough to average over the stalls of snapshots,
-// short enough to forget the start. The first step is never in the window.
+// The steps/s and ETA of progress events.
+//
+// A run's time is its steps plus the files it writes. The two are measured
+// apart, because they scale apart: a snapshot of a continent-scale domain
+// can take minutes while its steps take seconds, and the files a run still
+// owes are known exactly from its cadence (run.snapshot_every,
+// run.checkpoint_every, and both after the last step).
+//
+// Steps: a run's rate changes. The first steps pay for setup and for the
+// avalanching of the initial layers. The mean since the start carries those
+// costs for the whole run (an ETA of hours in the first seconds of a
+// one-minute job), so the rate here is measured over a moving window of the
+// most recent steps' compute time (the files' time taken out): the last
+// max(kMinWindowS, kWindowFraction x elapsed) seconds, long enough to average
+// out noise, short enough to forget the start. The first step is never in
+// the window.
+//
+// Files: each kind costs what its latest write took (OutputCosts). A new run
+// writes a snapshot before its first step, so that cost is known from the
+// start; a checkpoint not yet timed is costed as a snapshot.
 #pragma once
 
 #include <algorithm>
@@ -20,8 +32,8 @@ class MovingRate {
   static constexpr double kMinWindowS = 3.0;
   static constexpr double kWindowFraction = 0.3;
 
-  // One sample per step: `t` seconds since the run (or resume) started,
-  // `step` the steps done by then.
+  // One sample per step: `t` seconds of stepping since the run (or resume)
+  // started, `step` the steps done by then.
   void add(double t, std::int64_t step) {
     samples_.push_back({t, step});
     const double window = std::max(kMinWindowS, kWindowFraction * t);
@@ -38,7 +50,8 @@ class MovingRate {
     return b.t > a.t ? static_cast<double>(b.step - a.step) / (b.t - a.t) : 0;
   }
 
-  // Seconds to reach `last_step` at the window's rate; -1 while unknown.
+  // Seconds of stepping to reach `last_step` at the window's rate; -1 while
+  // unknown.
   double eta_s(std::int64_t last_step) const {
     const double r = steps_per_s();
     if (r <= 0) return -1;
@@ -51,6 +64,37 @@ class MovingRate {
     std::int64_t step;
   };
   std::deque<Sample> samples_;
+};
+
+// Multiples of `every` in (after, last], plus `last` itself when it is not
+// one (a run writes both kinds after its last step); `every` <= 0: `last`
+// alone. 0 when after >= last.
+inline std::int64_t files_due(std::int64_t after, std::int64_t last, std::int64_t every) {
+  if (after >= last) return 0;
+  if (every <= 0) return 1;
+  const std::int64_t multiples = last / every - after / every;
+  return multiples + (last % every != 0 ? 1 : 0);
+}
+
+// What the latest snapshot and checkpoint took to write, and so what the
+// files a run still owes will take.
+class OutputCosts {
+ public:
+  void snapshot_took(double s) { snapshot_s_ = s; }
+  void checkpoint_took(double s) { checkpoint_s_ = s; }
+
+  // Seconds to write the files due after step `after` up to `last`.
+  double due_s(std::int64_t after, std::int64_t last, std::int64_t snapshot_every,
+               std::int64_t checkpoint_every) const {
+    const double checkpoint = checkpoint_s_ >= 0 ? checkpoint_s_ : std::max(snapshot_s_, 0.0);
+    return static_cast<double>(files_due(after, last, snapshot_every)) *
+               std::max(snapshot_s_, 0.0) +
+           static_cast<double>(files_due(after, last, checkpoint_every)) * checkpoint;
+  }
+
+ private:
+  double snapshot_s_ = -1;  // -1: not yet written in this process
+  double checkpoint_s_ = -1;
 };
 
 }  // namespace erg::sim

@@ -488,8 +488,8 @@ class JobRun {
     }
     MPI_Barrier(ctx_.comm);  // the directories exist before any collective write
     if (!cfg_.resume) {
-      write_outputs(*sim_, cfg_.out_dir, sim_->spec().run().previews(), progress_, ctx_);
-      if (sim_->spec().run().checkpoint_every() > 0) write_checkpoint(*sim_, cfg_.out_dir, ctx_);
+      timed_snapshot();
+      if (sim_->spec().run().checkpoint_every() > 0) timed_checkpoint();
     }
     // One broadcast, only when steering.
     if (steering_ && sim_->step_index() < steps_) {
@@ -506,6 +506,7 @@ class JobRun {
     last_report_ = last_log_ = t0;
     first_ = sim_->step_index();
     stats0_ = sim_->exchange().stats();
+    double files_s = 0;  // of the loop's time, writing snapshots and checkpoints
     while (sim_->step_index() < steps_) {
       const auto begin = Clock::now();
       sim_->step();
@@ -515,13 +516,14 @@ class JobRun {
       const auto before_files = Clock::now();
       write_due_files(s, last);
       const auto now = Clock::now();
+      files_s += seconds(now - before_files);
       const StepOutcome decided = ctx_.root() ? decide(s, last, now) : StepOutcome{};
       const auto before_bcast = Clock::now();
       const StepOutcome next = bcast(decided, ctx_);
       const auto after_bcast = Clock::now();
-      moving_rate_.add(seconds(now - t0), s);
+      moving_rate_.add(seconds(now - t0) - files_s, s);
       const double rate = moving_rate_.steps_per_s();
-      const double eta = moving_rate_.eta_s(steps_);
+      const double eta = eta_s(s);
       if (next.report) report_progress(s, rate, eta, now);
       log_progress(s, last, rate, eta, now);
       busy_s_ += seconds(before_files - begin) + seconds(before_bcast - now) +
@@ -546,10 +548,30 @@ class JobRun {
   // Snapshots and checkpoints at the job's cadence, and both at the end.
   void write_due_files(std::int64_t s, bool last) {
     const auto& run = sim_->spec().run();
-    if (last || (run.snapshot_every() > 0 && s % run.snapshot_every() == 0))
-      write_outputs(*sim_, cfg_.out_dir, run.previews(), progress_, ctx_);
-    if (last || (run.checkpoint_every() > 0 && s % run.checkpoint_every() == 0))
-      write_checkpoint(*sim_, cfg_.out_dir, ctx_);
+    if (last || (run.snapshot_every() > 0 && s % run.snapshot_every() == 0)) timed_snapshot();
+    if (last || (run.checkpoint_every() > 0 && s % run.checkpoint_every() == 0)) timed_checkpoint();
+  }
+
+  void timed_snapshot() {
+    const auto t = Clock::now();
+    write_outputs(*sim_, cfg_.out_dir, sim_->spec().run().previews(), progress_, ctx_);
+    output_costs_.snapshot_took(seconds(Clock::now() - t));
+  }
+
+  void timed_checkpoint() {
+    const auto t = Clock::now();
+    write_checkpoint(*sim_, cfg_.out_dir, ctx_);
+    output_costs_.checkpoint_took(seconds(Clock::now() - t));
+  }
+
+  // Seconds to the end after step s: the steps left at the window's rate
+  // and the files still due at their latest cost (sim/moving_rate.h); -1
+  // while the rate is unknown.
+  double eta_s(std::int64_t s) const {
+    const double stepping = moving_rate_.eta_s(steps_);
+    if (stepping < 0) return -1;
+    const auto& run = sim_->spec().run();
+    return stepping + output_costs_.due_s(s, steps_, run.snapshot_every(), run.checkpoint_every());
   }
 
   // Rank 0 after step s: report at most every 0.25 s and at the end; stop
@@ -776,8 +798,9 @@ class JobRun {
   bool steering_ = false, log_steering_ = false;
   std::vector<SteerFile> steered_;  // rank 0: taken, not yet applied
   Clock::time_point last_report_, last_log_;
-  std::int64_t first_ = 0;            // the loop's first step
-  erg::sim::MovingRate moving_rate_;  // steps/s and ETA of the progress events
+  std::int64_t first_ = 0;              // the loop's first step
+  erg::sim::MovingRate moving_rate_;    // steps/s and ETA of the progress events
+  erg::sim::OutputCosts output_costs_;  // and the files' part of the ETA
   dist::Exchange::Stats stats0_{};
   double busy_s_ = 0;  // this rank's busy time in the loop (busy_ms_per_step)
 };
