@@ -17,8 +17,12 @@
 // the window.
 //
 // Files: each kind costs what its latest write took (OutputCosts). A new run
-// writes a snapshot before its first step, so that cost is known from the
-// start; a checkpoint not yet timed is costed as a snapshot.
+// writes a snapshot before its first step, and a checkpoint too when it has a
+// checkpoint cadence, so those costs are known from the start. A run without
+// one writes its only checkpoint after the last step; until then it is not
+// counted (it is the cheaper file, with no overview and no preview: 0.07 s
+// against a snapshot's 0.3 s for 512^2 cells here), and a resumed run counts
+// each kind from its first write on.
 #pragma once
 
 #include <algorithm>
@@ -86,15 +90,13 @@ class OutputCosts {
   // Seconds to write the files due after step `after` up to `last`.
   double due_s(std::int64_t after, std::int64_t last, std::int64_t snapshot_every,
                std::int64_t checkpoint_every) const {
-    const double checkpoint = checkpoint_s_ >= 0 ? checkpoint_s_ : std::max(snapshot_s_, 0.0);
-    return static_cast<double>(files_due(after, last, snapshot_every)) *
-               std::max(snapshot_s_, 0.0) +
-           static_cast<double>(files_due(after, last, checkpoint_every)) * checkpoint;
+    return static_cast<double>(files_due(after, last, snapshot_every)) * snapshot_s_ +
+           static_cast<double>(files_due(after, last, checkpoint_every)) * checkpoint_s_;
   }
 
  private:
-  double snapshot_s_ = -1;  // -1: not yet written in this process
-  double checkpoint_s_ = -1;
+  double snapshot_s_ = 0;  // 0 until written in this process
+  double checkpoint_s_ = 0;
 };
 
 }  // namespace erg::sim
