@@ -239,6 +239,17 @@ class Shape(unittest.TestCase):
         self.assertTrue(sh["horns_downwind"])
 
 
+class ShapeVerdict(unittest.TestCase):
+    """The shape law's verdict names the half that failed."""
+
+    def test_each_half_named_with_its_count(self):
+        import validate as V
+        self.assertEqual(V.shape_failures(4, 0, 0), [])
+        self.assertEqual(V.shape_failures(4, 0, 1), ["horns not downwind on 1 of 4"])
+        self.assertEqual(V.shape_failures(3, 2, 3),
+                         ["H/W outside the range on 2 of 3", "horns not downwind on 3 of 3"])
+
+
 class WindwardSlope(unittest.TestCase):
     """A ridge across the wind with a windward face of slope 0.2 and a lee
     face of slope 0.65: the measure reads the face the wind climbs."""
