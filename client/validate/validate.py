@@ -527,8 +527,7 @@ def barchan_laws(rep, T, run_dir, job):
                "on')." if physical(job) else ""), "")
     rep.add("| dune (y, m) | H (m) | W (m) | H/W | horn offset (m) | horns downwind | slip face | windward slope (deg) |",
             "|---|---|---|---|---|---|---|---|")
-    judged, ok_shape = 0, True
-    aspects, off_aspect, horns_upwind = [], 0, 0
+    aspects, off_aspect, horns_upwind = [], 0, 0  # over the dunes with a slip face
     for d in final:
         sh = M.barchan_shape(d, last["sand"], cell, wind)
         lee = (np.cos(rel[d["iy"], d["ix"]]) > 0) & (ang[d["iy"], d["ix"]] >= repose - B["slip_face_margin_deg"])
@@ -538,26 +537,22 @@ def barchan_laws(rep, T, run_dir, job):
                 f"{'yes' if slip else 'no'} | "
                 f"{M.windward_slope(d, last['sand'], height, cell, wind, det['dune_sand_threshold_m']):.1f} |")
         if slip:
-            judged += 1
-            in_range = B["min"] <= sh["aspect"] <= B["max"]
-            off_aspect += not in_range
+            off_aspect += not B["min"] <= sh["aspect"] <= B["max"]
             horns_upwind += not sh["horns_downwind"]
-            ok_shape = ok_shape and in_range and sh["horns_downwind"]
             aspects.append(sh["aspect"])
     rep.add("")
+    judged = len(aspects)
     if judged == 0:
-        ok_shape = False
         rep.add(f"{verdict(False)}: no dune with a slip face.", "")
         rep.law("Barchan H/W ~ 0.1, horns downwind", False, "no dune with a slip face")
     else:
-        failing = shape_failures(judged, off_aspect, horns_upwind)
+        failing = "".join(f"; {f}" for f in shape_failures(judged, off_aspect, horns_upwind))
+        ok_shape = not failing
         rep.add(f"Expected H/W = {B['expected_aspect']:g} within [{B['min']:g}, {B['max']:g}] and "
                 f"horns downwind, for each of the {judged} dunes with a slip face. {verdict(ok_shape)}: "
-                f"H/W from {min(aspects):.3f} to {max(aspects):.3f}"
-                + "".join(f"; {f}" for f in failing) + ".", "")
+                f"H/W from {min(aspects):.3f} to {max(aspects):.3f}{failing}.", "")
         rep.law("Barchan H/W ~ 0.1, horns downwind", ok_shape,
-                f"H/W {min(aspects):.3f}-{max(aspects):.3f} over {judged} dunes"
-                + "".join(f"; {f}" for f in failing))
+                f"H/W {min(aspects):.3f}-{max(aspects):.3f} over {judged} dunes{failing}")
     fig, ax = plt.subplots(figsize=(7, 7 * ny / nx + 0.6))
     im = ax.imshow(last["sand"], origin="lower", extent=(0, nx * cell, 0, ny * cell), cmap="YlOrBr")
     for d in final:
