@@ -25,6 +25,16 @@ TEST(FilesDue, CountsTheCadenceAndTheEnd) {
   EXPECT_EQ(files_due(450, 450, 0), 0);
 }
 
+TEST(FilesDue, CountsTheStepsTheRunnerWritesAt) {
+  // The count is the runner's predicate summed, for any cadence and start.
+  for (std::int64_t every : {-1, 0, 1, 7, 100, 450, 1000})
+    for (std::int64_t after : {0, 1, 99, 100, 101, 449, 450}) {
+      std::int64_t n = 0;
+      for (std::int64_t s = after + 1; s <= 450; ++s) n += file_due(s, 450, every) ? 1 : 0;
+      EXPECT_EQ(files_due(after, 450, every), n) << "every " << every << ", after " << after;
+    }
+}
+
 TEST(OutputCosts, FilesDueAtTheirLatestCost) {
   OutputCosts c;
   EXPECT_EQ(c.due_s(0, 1000, 100, 0), 0.0) << "nothing timed yet";

@@ -70,8 +70,16 @@ class MovingRate {
   std::deque<Sample> samples_;
 };
 
-// Multiples of `every` in (after, last], plus `last` itself when it is not
-// one (a run writes both kinds after its last step); `every` <= 0: `last`
+// Whether a run ending at step `last` writes a file of cadence `every`
+// after step s: at every multiple of `every` (none when `every` <= 0), and
+// both kinds after the last step. The runner writes by it; files_due counts
+// it.
+inline bool file_due(std::int64_t s, std::int64_t last, std::int64_t every) {
+  return s == last || (every > 0 && s % every == 0);
+}
+
+// How many steps in (after, last] file_due holds for: the multiples of
+// `every` there, plus `last` itself when it is not one; `every` <= 0: `last`
 // alone. 0 when after >= last.
 inline std::int64_t files_due(std::int64_t after, std::int64_t last, std::int64_t every) {
   if (after >= last) return 0;

@@ -514,7 +514,7 @@ class JobRun {
       warn_if_capped(s);
       const bool last = s == steps_;
       const auto before_files = Clock::now();
-      write_due_files(s, last);
+      write_due_files(s);
       const auto now = Clock::now();
       files_s += seconds(now - before_files);
       const StepOutcome decided = ctx_.root() ? decide(s, last, now) : StepOutcome{};
@@ -545,11 +545,12 @@ class JobRun {
              " with sand still moving; slip faces may stand above the repose angle\n");
   }
 
-  // Snapshots and checkpoints at the job's cadence, and both at the end.
-  void write_due_files(std::int64_t s, bool last) {
+  // Snapshots and checkpoints at the job's cadence, and both at the end
+  // (sim/moving_rate.h, which the ETA counts by).
+  void write_due_files(std::int64_t s) {
     const auto& run = sim_->spec().run();
-    if (last || (run.snapshot_every() > 0 && s % run.snapshot_every() == 0)) timed_snapshot();
-    if (last || (run.checkpoint_every() > 0 && s % run.checkpoint_every() == 0)) timed_checkpoint();
+    if (erg::sim::file_due(s, steps_, run.snapshot_every())) timed_snapshot();
+    if (erg::sim::file_due(s, steps_, run.checkpoint_every())) timed_checkpoint();
   }
 
   void timed_snapshot() {
