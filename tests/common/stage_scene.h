@@ -42,4 +42,18 @@ inline std::string stage_scene(const std::string& transport) {
 })";
 }
 
+// The same scene in the physical mode (a shear velocity; the primitives'
+// speeds stay model additions to the surface wind) with the hop turned down
+// the slope (physics.hop_slope_deflection): the slope is read from the
+// heights' ghosts, and next to the obstacles counted level.
+inline std::string deflected_stage_scene(const std::string& transport) {
+  std::string s = stage_scene(transport);
+  const std::string wind = R"("wind": {"constant": {"speed_mps": 6, "direction_deg": 30}},)";
+  s.replace(s.find(wind), wind.size(),
+            R"("wind": {"speed_is": "SHEAR_VELOCITY",
+           "constant": {"speed_mps": 0.45, "direction_deg": 30}},
+  "physics": {"hop_slope_deflection": 0.34},)");
+  return s;
+}
+
 }  // namespace erg::test_support

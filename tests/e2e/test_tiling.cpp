@@ -378,6 +378,28 @@ TEST(Tiling, ShearStressGivesTheSameBitsOnOneToSixRanks) {
  "run": {"steps": 6, "snapshot_every": 3}})");
 }
 
+// The hop turned down the slope (physics.hop_slope_deflection) reads the
+// heights' ghosts one cell out: in the expected mode's vectorised scatter
+// (no obstacles) and the stochastic mode's plain one (an obstacle counted
+// level), steep sand patches under a wind at 25 degrees give the same bits
+// on 1, 2 and 6 ranks.
+TEST(Tiling, HopSlopeDeflectionGivesTheSameBitsOnOneToSixRanks) {
+  for (const std::string transport : {"EXPECTED", "STOCHASTIC"}) {
+    SCOPED_TRACE(transport);
+    const std::string obstacle =
+        transport == "STOCHASTIC"
+            ? R"(, "obstacles": {"shapes": [{"height_m": 3, "disk": {"x_m": 60, "y_m": 40, "radius_m": 6}}]})"
+            : "";
+    expect_same_bits_on_one_to_six_ranks(R"({"domain": {"nx": 128, "ny": 96, "cell_size_m": 1.0},
+ "layers": {"sand": {"patches": {"coverage": 0.5, "radius_m": 8, "height": 5, "falloff_m": 3}})" +
+                                         obstacle + R"(},
+ "wind": {"speed_is": "SHEAR_VELOCITY", "constant": {"speed_mps": 0.45, "direction_deg": 25}},
+ "transport": ")" + transport + R"(", "model": {"slab_m": 0.05, "avalanche_iterations": 12},
+ "physics": {"hop_slope_deflection": 0.34},
+ "run": {"steps": 6, "snapshot_every": 3}})");
+  }
+}
+
 // The shadow's cubic samples read two cells past the march (its halo) and
 // the isotropic repose has each receiver recompute its donors' tangents from
 // their 3 x 3 heights (two cells from the receiver, at the edge of each

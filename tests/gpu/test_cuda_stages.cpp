@@ -26,8 +26,15 @@
 namespace erg {
 namespace {
 
-erg::v1::JobSpec scene(const std::string& transport) {
-  erg::v1::JobSpec spec = job::parse_json(test_support::stage_scene(transport), "stage scene");
+// "EXPECTED" or "STOCHASTIC", either with "+deflected" (the hop turned down
+// the slope: test_support::deflected_stage_scene).
+erg::v1::JobSpec scene(const std::string& param) {
+  const auto cut = param.find('+');
+  const std::string transport = param.substr(0, cut);
+  erg::v1::JobSpec spec =
+      job::parse_json(cut == std::string::npos ? test_support::stage_scene(transport)
+                                               : test_support::deflected_stage_scene(transport),
+                      "stage scene");
   job::apply_defaults(spec);
   for (const auto& p : job::validate(spec)) ADD_FAILURE() << p;
   return spec;
@@ -48,7 +55,15 @@ TEST_P(CudaStages, EveryStageGivesTheCpuBits) {
                                     on(BackendKind::kCuda), 4);
 }
 
-INSTANTIATE_TEST_SUITE_P(Transport, CudaStages, ::testing::Values("EXPECTED", "STOCHASTIC"));
+INSTANTIATE_TEST_SUITE_P(Transport, CudaStages,
+                         ::testing::Values("EXPECTED", "STOCHASTIC", "EXPECTED+deflected",
+                                           "STOCHASTIC+deflected"),
+                         [](const auto& info) {
+                           std::string n = info.param;
+                           for (char& c : n)
+                             if (c == '+') c = '_';
+                           return n;
+                         });
 
 }  // namespace
 }  // namespace erg

@@ -137,22 +137,24 @@ saltation::Params saltation_params(bool stochastic) {
 struct Airborne {
   TileGeom g;
   std::vector<units_t> air;
-  std::vector<float> wx, wy, obstacles;
+  std::vector<float> wx, wy, obstacles, heights;
 };
 Airborne random_airborne(std::uint32_t seed) {
   std::mt19937 rng(seed);
-  Airborne a{tile(70, 19, 6), {}, {}, {}, {}};
+  Airborne a{tile(70, 19, 6), {}, {}, {}, {}, {}};
   const std::size_t n = a.g.size();
   a.air.assign(n, 0);
   a.wx.assign(n, 0.0f);
   a.wy.assign(n, 0.0f);
   a.obstacles.assign(n, 0.0f);
-  std::uniform_real_distribution<float> wind(-5.0f, 5.0f);
+  a.heights.assign(n, 0.0f);
+  std::uniform_real_distribution<float> wind(-5.0f, 5.0f), height(0.0f, 3.0f);
   std::uniform_int_distribution<units_t> amount(0, 1'000'000'007);
   for (std::size_t i = 0; i < n; ++i) {
     a.air[i] = i % 5 == 0 ? 0 : amount(rng);
     a.wx[i] = i % 23 == 0 ? 0.0f : wind(rng);
     a.wy[i] = wind(rng);
+    a.heights[i] = height(rng);
   }
   return a;
 }
@@ -164,13 +166,18 @@ std::vector<units_t> scatter_plain(Airborne a, const saltation::Params& p, bool 
   for (int y = 0; y < a.g.ny; ++y)
     cpu::scatter_row(a.air.data() + a.g.at(0, y), a.wx.data() + a.g.at(0, y),
                      a.wy.data() + a.g.at(0, y), a.g, y, 99, 42, p, obstacles,
-                     a.obstacles.data() + a.g.at(0, 0), landed.data());
+                     a.heights.data() + a.g.at(0, 0), a.obstacles.data() + a.g.at(0, 0),
+                     landed.data());
   return landed;
 }
 
-TEST(CpuFastPaths, VectorisedExpectedScatterEqualsPlainLanding) {
+// The vectorised pass against land_hop per cell, with the hop's deflection
+// down the slope off and on (the slope of random heights, the wind in every
+// direction; physics.hop_slope_deflection).
+void expect_vectorised_scatter_equals_plain(float slope_k) {
   Airborne a = random_airborne(2024);
-  const saltation::Params p = saltation_params(false);
+  saltation::Params p = saltation_params(false);
+  p.slope_k = slope_k;
   const std::vector<units_t> plain = scatter_plain(a, p, false);
   std::vector<units_t> fast(a.g.size(), 0);
   std::vector<long> target(static_cast<size_t>(a.g.nx));
@@ -179,9 +186,10 @@ TEST(CpuFastPaths, VectorisedExpectedScatterEqualsPlainLanding) {
   for (int y = 0; y < a.g.ny; ++y)
     for (int x = 0; x < a.g.nx; ++x) owned_total += a.air[a.g.at(x, y)];
   for (int y = 0; y < a.g.ny; ++y) {
-    cpu::split_row(a.air.data() + a.g.at(0, y), a.wx.data() + a.g.at(0, y),
-                   a.wy.data() + a.g.at(0, y), a.g.nx, y, static_cast<long>(a.g.at(0, 0)),
-                   a.g.pitch, p, target.data(), parts.data());
+    const auto split = slope_k > 0.0f ? cpu::split_row<true> : cpu::split_row<false>;
+    split(a.air.data() + a.g.at(0, y), a.wx.data() + a.g.at(0, y), a.wy.data() + a.g.at(0, y),
+          a.heights.data() + a.g.at(0, y), a.g.nx, y, static_cast<long>(a.g.at(0, 0)), a.g.pitch, p,
+          target.data(), parts.data());
     cpu::add_splits(target.data(), parts.data(), a.g.nx, a.g.pitch, fast.data());
   }
   EXPECT_EQ(fast, plain);
@@ -189,6 +197,20 @@ TEST(CpuFastPaths, VectorisedExpectedScatterEqualsPlainLanding) {
   for (units_t v : plain) landed_total += v;
   EXPECT_EQ(landed_total, owned_total);  // every owned unit lands somewhere
   EXPECT_GT(owned_total, 0);
+}
+
+TEST(CpuFastPaths, VectorisedExpectedScatterEqualsPlainLanding) {
+  expect_vectorised_scatter_equals_plain(0.0f);
+}
+
+TEST(CpuFastPaths, VectorisedDeflectedScatterEqualsPlainLanding) {
+  expect_vectorised_scatter_equals_plain(0.34f);
+  // The deflection moved sand: the same airborne sand lands elsewhere.
+  Airborne a = random_airborne(2024);
+  saltation::Params p = saltation_params(false);
+  const std::vector<units_t> straight = scatter_plain(a, p, false);
+  p.slope_k = 0.34f;
+  EXPECT_NE(scatter_plain(a, p, false), straight);
 }
 
 // The landing kernel (stages/saltation.h, spread()) has the same mean and
@@ -243,7 +265,7 @@ TEST(CpuFastPaths, LandingSpreadIsTheSameAtEveryWindAngle) {
           std::vector<units_t> one(g.size(), 0), air(static_cast<size_t>(g.nx), 0);
           std::vector<float> rx(static_cast<size_t>(g.nx), wx), ry(static_cast<size_t>(g.nx), wy);
           air[static_cast<size_t>(x)] = units_t{1} << 40;
-          cpu::scatter_row(air.data(), rx.data(), ry.data(), g, y, 7, 3, p, false, nullptr,
+          cpu::scatter_row(air.data(), rx.data(), ry.data(), g, y, 7, 3, p, false, nullptr, nullptr,
                            one.data());
           const Moments m = landing_moments(one, g, x, y, deg);
           mx += m.mx / (n * n);

@@ -23,14 +23,16 @@ class StageAgreement : public ::testing::TestWithParam<std::string> {};
 
 // "EXPECTED", "STOCHASTIC", or either with "+isotropic": the shadow's cubic
 // samples and the isotropic repose (model.shadow_sampling, model.repose),
-// whose stencils read two cells out.
+// whose stencils read two cells out; or with "+deflected": the hop turned
+// down the slope (test_support::deflected_stage_scene).
 erg::v1::JobSpec scene(const std::string& param) {
-  const std::string suffix = "+isotropic";
-  const bool iso = param.size() > suffix.size() &&
-                   param.compare(param.size() - suffix.size(), suffix.size(), suffix) == 0;
-  auto spec = test::spec_from(
-      test_support::stage_scene(iso ? param.substr(0, param.size() - suffix.size()) : param));
-  if (iso) {
+  const auto cut = param.find('+');
+  const std::string transport = param.substr(0, cut);
+  const std::string variant = cut == std::string::npos ? "" : param.substr(cut + 1);
+  auto spec =
+      test::spec_from(variant == "deflected" ? test_support::deflected_stage_scene(transport)
+                                             : test_support::stage_scene(transport));
+  if (variant == "isotropic") {
     spec.mutable_model()->set_shadow_sampling(erg::v1::ModelParameters::CUBIC);
     spec.mutable_model()->set_repose(erg::v1::ModelParameters::ISOTROPIC);
   }
@@ -77,7 +79,8 @@ TEST(StageAgreementHarness, NamesTheFirstStageAndFieldThatDiffer) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Transport, StageAgreement,
-                         ::testing::Values("EXPECTED", "STOCHASTIC", "STOCHASTIC+isotropic"),
+                         ::testing::Values("EXPECTED", "STOCHASTIC", "STOCHASTIC+isotropic",
+                                           "EXPECTED+deflected", "STOCHASTIC+deflected"),
                          [](const auto& info) {
                            std::string n = info.param;
                            for (char& c : n)

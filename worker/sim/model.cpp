@@ -73,6 +73,7 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
   s.ustar_t = 0.0f;
   s.inv_reference_shape = 0.0f;
   s.kawamura = false;
+  s.slope_k = 0.0f;
   if (physics::physical(spec)) {
     const physics::Sand sand = physics::sand_of(spec);
     const double ut = physics::threshold(sand);
@@ -81,6 +82,7 @@ Model make_model(const erg::v1::JobSpec& spec, int nx, int ny, int x0, int y0,
     s.inv_reference_shape =
         static_cast<float>(1.0 / physics::flux_shape(sand, sand.reference_excess * ut));
     s.kawamura = sand.law == erg::v1::PhysicalParameters::KAWAMURA_1951;
+    s.slope_k = static_cast<float>(sand.slope_k);
     // The hop of the saturation length (Andreotti, Claudin & Pouliquen 2010),
     // resolved on the grid (physics::physical_hop_m).
     s.max_hop_m =

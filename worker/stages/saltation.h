@@ -38,6 +38,9 @@ struct Params {
   float ustar_t;
   float inv_reference_shape;  // 1 / flux_shape(reference u*)
   bool kawamura;              // flux law: Kawamura 1951, else Lettau & Lettau 1978
+  // k of the hop's deflection down the slope (physics.hop_slope_deflection;
+  // landing() below); 0 in model units and when off.
+  float slope_k;
 };
 
 // How much of a slab a cell lifts for its surface wind: 1 in model units;
@@ -97,18 +100,48 @@ struct Landing {
   int x0, y0;    // the cell the landing point is in
   float fx, fy;  // the landing point's fraction past x0, y0 (spread())
 };
-ERG_HD Landing landing(int x, int y, Vec2 w, const Params& p) {
-  const float speed = length(w);
-  const bool moving = speed > 0.0f;  // (selects, no branch: loops vectorise)
-  const float hop_m =
-      p.ustar_per_mps > 0.0f ? p.max_hop_m : min_of(speed * p.hop_time_s, p.max_hop_m);
-  const float scale = moving ? hop_m / ((moving ? speed : 1.0f) * p.cell_m) : 0.0f;
+ERG_HD float hop_length_m(float wind_speed, const Params& p) {
+  return p.ustar_per_mps > 0.0f ? p.max_hop_m : min_of(wind_speed * p.hop_time_s, p.max_hop_m);
+}
+// A hop of hop_m metres along d (of length d_len; none when 0).
+ERG_HD Landing land_along(int x, int y, Vec2 d, float d_len, float hop_m, const Params& p) {
+  const bool moving = d_len > 0.0f;  // (selects, no branch: loops vectorise)
+  const float scale = moving ? hop_m / ((moving ? d_len : 1.0f) * p.cell_m) : 0.0f;
   // The hop is split into whole cells and a fraction on its own (not added
   // to the cell's coordinate in floating point), so the split does not
   // depend on where the tile starts: the same on every tiling.
-  const float dx = w.x * scale, dy = w.y * scale;
+  const float dx = d.x * scale, dy = d.y * scale;
   const float fx = floorf(dx), fy = floorf(dy);
   return {x + static_cast<int>(fx), y + static_cast<int>(fy), dx - fx, dy - fy};
+}
+ERG_HD Landing landing(int x, int y, Vec2 w, const Params& p) {
+  const float speed = length(w);
+  return land_along(x, y, w, speed, hop_length_m(speed, p), p);
+}
+
+// The slope a grain hops over: central differences of the ground height
+// (bedrock + sand, metres; `h` points at the cell in the height field, whose
+// ghosts the step has filled, `o` at the same cell of the obstacles). An
+// obstacle next to the cell counts as level with it: a wall stops a hop
+// (stages/obstacles.h), it does not tilt the bed under it.
+ERG_HD Vec2 ground_slope(const float* h, const float* o, long pitch, float cell_m) {
+  const float c = h[0];
+  const float e = o[1] > 0.0f ? c : h[1], w = o[-1] > 0.0f ? c : h[-1];
+  const float n = o[pitch] > 0.0f ? c : h[pitch], s = o[-pitch] > 0.0f ? c : h[-pitch];
+  const float inv_2l = 0.5f / cell_m;
+  return {(e - w) * inv_2l, (n - s) * inv_2l};
+}
+// With the deflection on (p.slope_k > 0), gravity turns the hop down the
+// slope: it goes along w / |w| - k grad h (Sauermann, Kroy & Herrmann 2001,
+// the grains' momentum balance linearised about a grain moving downwind;
+// physics.hop_slope_deflection), with the hop's length kept. On a barchan's
+// flanks that carries sand away from the axis, the outward flux that
+// stretches the horns. Off, the same bits as landing() above.
+ERG_HD Landing landing(int x, int y, Vec2 w, Vec2 slope, const Params& p) {
+  if (!(p.slope_k > 0.0f)) return landing(x, y, w, p);
+  const float speed = length(w);
+  const Vec2 d = speed > 0.0f ? (1.0f / speed) * w - p.slope_k * slope : Vec2{};
+  return land_along(x, y, d, length(d), hop_length_m(speed, p), p);
 }
 
 // The landing kernel: where around the landing point (x0 + fx, y0 + fy) a

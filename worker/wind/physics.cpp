@@ -39,6 +39,7 @@ Sand sand_of(const erg::v1::JobSpec& spec) {
   s.shear_a = p.shear_stress_a();
   s.shear_b = p.shear_stress_b();
   s.shear_radius_m = p.shear_stress_radius_m();
+  s.slope_k = p.hop_slope_deflection();
   s.law = p.flux_law() == erg::v1::PhysicalParameters::KAWAMURA_1951
               ? erg::v1::PhysicalParameters::KAWAMURA_1951
               : erg::v1::PhysicalParameters::LETTAU_1978;

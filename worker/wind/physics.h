@@ -20,6 +20,7 @@ struct Sand {
   double reference_excess = 0;
   double saturation_length_m = 0;  // 0: 2.2 (rho_s / rho) d (saturation_length)
   double shear_a = 0, shear_b = 0, shear_radius_m = 0;  // stages/shear_stress.h
+  double slope_k = 0;  // physics.hop_slope_deflection (stages/saltation.h)
   erg::v1::PhysicalParameters::FluxLaw law = erg::v1::PhysicalParameters::LETTAU_1978;
 };
 Sand sand_of(const erg::v1::JobSpec& spec);

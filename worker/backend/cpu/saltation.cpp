@@ -99,12 +99,14 @@ void CpuBackend::saltation_hop(std::int64_t step) {
       for (int y = y_begin; y < y_end; ++y) {
         if (any_obstacles_ || p.stochastic) {
           scatter_row(f_.airborne.row(y), f_.wind_x.row(y), f_.wind_y.row(y), g_, y, seed, ustep, p,
-                      any_obstacles_, f_.obstacles.data() + g_.at(0, 0), f_.landed.data());
+                      any_obstacles_, f_.height_m.data() + g_.at(0, 0),
+                      f_.obstacles.data() + g_.at(0, 0), f_.landed.data());
         } else {
           // Landing points and exact splits in a vectorised pass, then the
           // adds (which may collide) in a scalar one.
-          split_row(f_.airborne.row(y), f_.wind_x.row(y), f_.wind_y.row(y), g_.nx, y,
-                    static_cast<long>(g_.at(0, 0)), g_.pitch, p, target.data(), parts.data());
+          const auto split = p.slope_k > 0.0f ? split_row<true> : split_row<false>;
+          split(f_.airborne.row(y), f_.wind_x.row(y), f_.wind_y.row(y), f_.height_m.row(y), g_.nx,
+                y, static_cast<long>(g_.at(0, 0)), g_.pitch, p, target.data(), parts.data());
           add_splits(target.data(), parts.data(), g_.nx, g_.pitch, f_.landed.data());
         }
       }

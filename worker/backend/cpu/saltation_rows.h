@@ -10,22 +10,29 @@
 
 #include "core/grid.h"
 #include "core/units.h"
+#include "core/vec2.h"
 #include "stages/hop_landing.h"
 
 namespace erg::cpu {
 
 // Plain path: each cell's airborne sand lands by land_hop into `landed`
 // (storage of the whole padded tile), and the airborne buffer is emptied.
+// h_base and o_base: the height and obstacle fields at local cell (0, 0),
+// ghosts filled (the slope of the hop's deflection, the obstacle walk).
 inline void scatter_row(units_t* air, const float* wx, const float* wy, const TileGeom& g, int y,
                         std::uint64_t seed, std::uint64_t step, const saltation::Params& p,
-                        bool obstacles, const float* o_base, units_t* landed) {
+                        bool obstacles, const float* h_base, const float* o_base, units_t* landed) {
   units_t* base = landed + g.at(0, 0);
   const long pitch = g.pitch;
   for (int x = 0; x < g.nx; ++x) {
     const units_t a = air[x];
     if (a == 0) continue;
     air[x] = 0;
-    const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, p);
+    const long c = static_cast<long>(y) * pitch + x;
+    const Vec2 slope = p.slope_k > 0.0f
+                           ? saltation::ground_slope(h_base + c, o_base + c, pitch, p.cell_m)
+                           : Vec2{};
+    const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, slope, p);
     const saltation::LandingDraw u = p.stochastic
                                          ? saltation::landing_draw(seed, step, g.global_index(x, y))
                                          : saltation::LandingDraw{0.0f, 0.0f};
@@ -38,15 +45,23 @@ inline void scatter_row(units_t* air, const float* wx, const float* wy, const Ti
 // Fast path, expected mode without obstacles: where each cell's airborne sand
 // lands (storage index of the first of the kernel's 3 x 3 receiving cells)
 // and its exact nine-way split. Empties the airborne buffer (everything is in
-// flight).
+// flight). Deflect: the hop turns down the slope of the heights `h` (row y,
+// ghosts filled; no obstacles in reach, so the slope is the heights' own),
+// as in the plain path.
+template <bool Deflect>
 inline void split_row(units_t* __restrict air, const float* __restrict wx,
-                      const float* __restrict wy, int nx, int y, long origin, long pitch,
-                      const saltation::Params p, long* __restrict target,
+                      const float* __restrict wy, const float* __restrict h, int nx, int y,
+                      long origin, long pitch, const saltation::Params p, long* __restrict target,
                       units_t* __restrict parts) {
   // (Parameters by value: int64 stores could alias fields read through a
   // reference, which would block vectorisation.)
+  const float inv_2l = 0.5f / p.cell_m;
   for (int x = 0; x < nx; ++x) {
-    const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, p);
+    const saltation::Landing L =
+        Deflect ? saltation::landing(
+                      x, y, {wx[x], wy[x]},
+                      {(h[x + 1] - h[x - 1]) * inv_2l, (h[x + pitch] - h[x - pitch]) * inv_2l}, p)
+                : saltation::landing(x, y, {wx[x], wy[x]}, p);
     const saltation::Spread sx = saltation::spread(L.fx);
     const saltation::Spread sy = saltation::spread(L.fy);
     units_t q[saltation::kLandingCells];

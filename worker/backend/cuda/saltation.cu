@@ -76,11 +76,16 @@ void CudaBackend::saltation_hop(std::int64_t step) {
   const bool obstacles = any_obstacles_;
   units_t* landed = d_.landed.get() + g.at(0, 0);
   const float* o_base = d_.obstacles.get() + g.at(0, 0);
+  const float* h_base = d_.height_m.get() + g.at(0, 0);
   for_each_cell(g, "saltation scatter", [=] __device__(int x, int y, std::size_t i) {
     const units_t a = airborne[i];
     if (a == 0) return;
     airborne[i] = 0;
-    const saltation::Landing L = saltation::landing(x, y, {wind_x[i], wind_y[i]}, p);
+    const long c = static_cast<long>(y) * g.pitch + x;
+    const Vec2 slope = p.slope_k > 0.0f
+                           ? saltation::ground_slope(h_base + c, o_base + c, g.pitch, p.cell_m)
+                           : Vec2{};
+    const saltation::Landing L = saltation::landing(x, y, {wind_x[i], wind_y[i]}, slope, p);
     const saltation::LandingDraw u =
         p.stochastic ? saltation::landing_draw(seed, ustep, g.global_index(x, y))
                      : saltation::LandingDraw{0.0f, 0.0f};
