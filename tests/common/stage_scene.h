@@ -56,4 +56,21 @@ inline std::string deflected_stage_scene(const std::string& transport) {
   return s;
 }
 
+// A stage test's parameter: "EXPECTED" or "STOCHASTIC", optionally with
+// "+variant" (the tests that take it say which variants they know).
+struct SceneName {
+  std::string transport;
+  std::string variant;  // "" without one
+};
+inline SceneName split_scene_name(const std::string& param) {
+  const auto cut = param.find('+');
+  return {param.substr(0, cut), cut == std::string::npos ? "" : param.substr(cut + 1)};
+}
+// The test name of such a parameter ('+' is not allowed in one).
+inline std::string scene_test_name(std::string param) {
+  for (char& c : param)
+    if (c == '+') c = '_';
+  return param;
+}
+
 }  // namespace erg::test_support

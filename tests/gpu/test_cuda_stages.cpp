@@ -29,11 +29,10 @@ namespace {
 // "EXPECTED" or "STOCHASTIC", either with "+deflected" (the hop turned down
 // the slope: test_support::deflected_stage_scene).
 erg::v1::JobSpec scene(const std::string& param) {
-  const auto cut = param.find('+');
-  const std::string transport = param.substr(0, cut);
+  const auto [transport, variant] = test_support::split_scene_name(param);
   erg::v1::JobSpec spec =
-      job::parse_json(cut == std::string::npos ? test_support::stage_scene(transport)
-                                               : test_support::deflected_stage_scene(transport),
+      job::parse_json(variant == "deflected" ? test_support::deflected_stage_scene(transport)
+                                             : test_support::stage_scene(transport),
                       "stage scene");
   job::apply_defaults(spec);
   for (const auto& p : job::validate(spec)) ADD_FAILURE() << p;
@@ -59,10 +58,7 @@ INSTANTIATE_TEST_SUITE_P(Transport, CudaStages,
                          ::testing::Values("EXPECTED", "STOCHASTIC", "EXPECTED+deflected",
                                            "STOCHASTIC+deflected"),
                          [](const auto& info) {
-                           std::string n = info.param;
-                           for (char& c : n)
-                             if (c == '+') c = '_';
-                           return n;
+                           return test_support::scene_test_name(info.param);
                          });
 
 }  // namespace

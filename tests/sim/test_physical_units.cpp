@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -453,22 +454,14 @@ TEST(PhysicalUnits, HopTurnsDownTheSlopeAcrossTheWind) {
     return std::pair<double, double>{L.x0 + L.fx - 10.0, L.y0 + L.fy - 20.0};
   };
   // Ground rising towards +y by 0.5 m per metre: the hop turns towards -y.
-  const auto [ax, ay] = at(saltation::landing(10, 20, w, {0.0f, 0.5f}, p));
+  const auto [ax, ay] = at(saltation::deflected_landing(10, 20, w, {0.0f, 0.5f}, p));
   const double theta = std::atan(0.34 * 0.5);
   EXPECT_NEAR(ax, 4.0 * std::cos(theta), 1e-5);
   EXPECT_NEAR(ay, -4.0 * std::sin(theta), 1e-5);
   // A slope along the wind: the same direction, the same length.
-  const auto [bx, by] = at(saltation::landing(10, 20, w, {0.5f, 0.0f}, p));
+  const auto [bx, by] = at(saltation::deflected_landing(10, 20, w, {0.5f, 0.0f}, p));
   EXPECT_NEAR(bx, 4.0, 1e-5);
   EXPECT_NEAR(by, 0.0, 1e-6);
-  // Off: the bits of the landing without a slope.
-  p.slope_k = 0.0f;
-  const saltation::Landing off = saltation::landing(10, 20, {0.3f, 0.2f}, {0.1f, 0.5f}, p);
-  const saltation::Landing plain = saltation::landing(10, 20, {0.3f, 0.2f}, p);
-  EXPECT_EQ(off.x0, plain.x0);
-  EXPECT_EQ(off.y0, plain.y0);
-  EXPECT_EQ(off.fx, plain.fx);
-  EXPECT_EQ(off.fy, plain.fy);
 
   // The ground's slope: a ramp of 0.5 per cell along y, by central
   // differences; an obstacle to the north counts as level with the cell.
@@ -477,11 +470,29 @@ TEST(PhysicalUnits, HopTurnsDownTheSlopeAcrossTheWind) {
   for (int y = 0; y < 5; ++y)
     for (int x = 0; x < 5; ++x) h[static_cast<size_t>(y * kPitch + x)] = 0.5f * y + 0.25f * x;
   const float* hc = h.data() + 2 * kPitch + 2;
-  const Vec2 ramp = saltation::ground_slope(hc, o.data() + 2 * kPitch + 2, kPitch, 0.5f);
+  const float* oc = o.data() + 2 * kPitch + 2;
+  const Vec2 ramp = saltation::ground_slope(hc, oc, kPitch, 0.5f);
   EXPECT_FLOAT_EQ(ramp.x, 0.5f);  // 0.25 per cell of 0.5 m
   EXPECT_FLOAT_EQ(ramp.y, 1.0f);
+
+  // The scatters' landing over that ground: deflected down its slope when
+  // k > 0; off, the bits of the landing without a slope.
+  p.cell_m = 0.5f;
+  const Vec2 v{0.3f, 0.2f};
+  const saltation::Landing over = saltation::landing_over(10, 20, v, hc, oc, kPitch, p);
+  const saltation::Landing down = saltation::deflected_landing(10, 20, v, ramp, p);
+  const saltation::Landing plain = saltation::landing(10, 20, v, p);
+  EXPECT_EQ(std::tie(over.x0, over.y0, over.fx, over.fy),
+            std::tie(down.x0, down.y0, down.fx, down.fy));
+  EXPECT_NE(std::tie(over.x0, over.y0, over.fx, over.fy),
+            std::tie(plain.x0, plain.y0, plain.fx, plain.fy));
+  p.slope_k = 0.0f;
+  const saltation::Landing off = saltation::landing_over(10, 20, v, hc, oc, kPitch, p);
+  EXPECT_EQ(std::tie(off.x0, off.y0, off.fx, off.fy),
+            std::tie(plain.x0, plain.y0, plain.fx, plain.fy));
+
   o[3 * kPitch + 2] = 2.0f;
-  const Vec2 walled = saltation::ground_slope(hc, o.data() + 2 * kPitch + 2, kPitch, 0.5f);
+  const Vec2 walled = saltation::ground_slope(hc, oc, kPitch, 0.5f);
   EXPECT_FLOAT_EQ(walled.x, 0.5f);
   EXPECT_FLOAT_EQ(walled.y, 0.5f);  // (centre - south) / 2 cells
 }

@@ -26,9 +26,7 @@ class StageAgreement : public ::testing::TestWithParam<std::string> {};
 // whose stencils read two cells out; or with "+deflected": the hop turned
 // down the slope (test_support::deflected_stage_scene).
 erg::v1::JobSpec scene(const std::string& param) {
-  const auto cut = param.find('+');
-  const std::string transport = param.substr(0, cut);
-  const std::string variant = cut == std::string::npos ? "" : param.substr(cut + 1);
+  const auto [transport, variant] = test_support::split_scene_name(param);
   auto spec =
       test::spec_from(variant == "deflected" ? test_support::deflected_stage_scene(transport)
                                              : test_support::stage_scene(transport));
@@ -82,10 +80,7 @@ INSTANTIATE_TEST_SUITE_P(Transport, StageAgreement,
                          ::testing::Values("EXPECTED", "STOCHASTIC", "STOCHASTIC+isotropic",
                                            "EXPECTED+deflected", "STOCHASTIC+deflected"),
                          [](const auto& info) {
-                           std::string n = info.param;
-                           for (char& c : n)
-                             if (c == '+') c = '_';
-                           return n;
+                           return test_support::scene_test_name(info.param);
                          });
 
 }  // namespace

@@ -119,7 +119,14 @@ ERG_HD Landing landing(int x, int y, Vec2 w, const Params& p) {
   return land_along(x, y, w, speed, hop_length_m(speed, p), p);
 }
 
-// The slope a grain hops over: central differences of the ground height
+// The slope of a cell from its four neighbours' heights (metres): central
+// differences, east minus west and north minus south over two cells.
+ERG_HD Vec2 central_slope(float e, float w, float n, float s, float cell_m) {
+  const float inv_2l = 0.5f / cell_m;
+  return {(e - w) * inv_2l, (n - s) * inv_2l};
+}
+
+// The slope a grain hops over: central_slope() of the ground height
 // (bedrock + sand, metres; `h` points at the cell in the height field, whose
 // ghosts the step has filled, `o` at the same cell of the obstacles). An
 // obstacle next to the cell counts as level with it: a wall stops a hop
@@ -128,20 +135,28 @@ ERG_HD Vec2 ground_slope(const float* h, const float* o, long pitch, float cell_
   const float c = h[0];
   const float e = o[1] > 0.0f ? c : h[1], w = o[-1] > 0.0f ? c : h[-1];
   const float n = o[pitch] > 0.0f ? c : h[pitch], s = o[-pitch] > 0.0f ? c : h[-pitch];
-  const float inv_2l = 0.5f / cell_m;
-  return {(e - w) * inv_2l, (n - s) * inv_2l};
+  return central_slope(e, w, n, s, cell_m);
 }
 // With the deflection on (p.slope_k > 0), gravity turns the hop down the
 // slope: it goes along w / |w| - k grad h (Sauermann, Kroy & Herrmann 2001,
 // the grains' momentum balance linearised about a grain moving downwind;
 // physics.hop_slope_deflection), with the hop's length kept. On a barchan's
 // flanks that carries sand away from the axis, the outward flux that
-// stretches the horns. Off, the same bits as landing() above.
-ERG_HD Landing landing(int x, int y, Vec2 w, Vec2 slope, const Params& p) {
-  if (!(p.slope_k > 0.0f)) return landing(x, y, w, p);
+// stretches the horns. Only for k > 0: w / |w| is not w's own bits, so
+// landing_over() picks landing() when the deflection is off.
+ERG_HD Landing deflected_landing(int x, int y, Vec2 w, Vec2 slope, const Params& p) {
   const float speed = length(w);
   const Vec2 d = speed > 0.0f ? (1.0f / speed) * w - p.slope_k * slope : Vec2{};
   return land_along(x, y, d, length(d), hop_length_m(speed, p), p);
+}
+// The landing of sand leaving local cell (x, y) under wind w, over the ground
+// at h and o (ground_slope()'s pointers): deflected down its slope when
+// p.slope_k > 0, else landing()'s bits (the slope is then not read). Both
+// backends' scatters call this.
+ERG_HD Landing landing_over(int x, int y, Vec2 w, const float* h, const float* o, long pitch,
+                            const Params& p) {
+  return p.slope_k > 0.0f ? deflected_landing(x, y, w, ground_slope(h, o, pitch, p.cell_m), p)
+                          : landing(x, y, w, p);
 }
 
 // The landing kernel: where around the landing point (x0 + fx, y0 + fy) a

@@ -29,10 +29,8 @@ inline void scatter_row(units_t* air, const float* wx, const float* wy, const Ti
     if (a == 0) continue;
     air[x] = 0;
     const long c = static_cast<long>(y) * pitch + x;
-    const Vec2 slope = p.slope_k > 0.0f
-                           ? saltation::ground_slope(h_base + c, o_base + c, pitch, p.cell_m)
-                           : Vec2{};
-    const saltation::Landing L = saltation::landing(x, y, {wx[x], wy[x]}, slope, p);
+    const saltation::Landing L =
+        saltation::landing_over(x, y, {wx[x], wy[x]}, h_base + c, o_base + c, pitch, p);
     const saltation::LandingDraw u = p.stochastic
                                          ? saltation::landing_draw(seed, step, g.global_index(x, y))
                                          : saltation::LandingDraw{0.0f, 0.0f};
@@ -55,12 +53,13 @@ inline void split_row(units_t* __restrict air, const float* __restrict wx,
                       units_t* __restrict parts) {
   // (Parameters by value: int64 stores could alias fields read through a
   // reference, which would block vectorisation.)
-  const float inv_2l = 0.5f / p.cell_m;
   for (int x = 0; x < nx; ++x) {
     const saltation::Landing L =
-        Deflect ? saltation::landing(
+        Deflect ? saltation::deflected_landing(
                       x, y, {wx[x], wy[x]},
-                      {(h[x + 1] - h[x - 1]) * inv_2l, (h[x + pitch] - h[x - pitch]) * inv_2l}, p)
+                      saltation::central_slope(h[x + 1], h[x - 1], h[x + pitch], h[x - pitch],
+                                               p.cell_m),
+                      p)
                 : saltation::landing(x, y, {wx[x], wy[x]}, p);
     const saltation::Spread sx = saltation::spread(L.fx);
     const saltation::Spread sy = saltation::spread(L.fy);

@@ -82,10 +82,8 @@ void CudaBackend::saltation_hop(std::int64_t step) {
     if (a == 0) return;
     airborne[i] = 0;
     const long c = static_cast<long>(y) * g.pitch + x;
-    const Vec2 slope = p.slope_k > 0.0f
-                           ? saltation::ground_slope(h_base + c, o_base + c, g.pitch, p.cell_m)
-                           : Vec2{};
-    const saltation::Landing L = saltation::landing(x, y, {wind_x[i], wind_y[i]}, slope, p);
+    const saltation::Landing L =
+        saltation::landing_over(x, y, {wind_x[i], wind_y[i]}, h_base + c, o_base + c, g.pitch, p);
     const saltation::LandingDraw u =
         p.stochastic ? saltation::landing_draw(seed, ustep, g.global_index(x, y))
                      : saltation::LandingDraw{0.0f, 0.0f};
