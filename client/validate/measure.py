@@ -319,6 +319,25 @@ def lee_slopes_deg(height, sand, cell_size_m, wind_deg, min_sand_m, min_angle_de
     return ang[lee]
 
 
+def repose_faces(height, sand, cell_size_m, wind_deg, repose_deg, min_sand_m, within_deg=0.5):
+    """Where the surface stands at repose, and which way it faces: the
+    shares of the cells holding more than `min_sand_m` of sand whose
+    steepest descent (8 neighbours, as avalanching sees them) is within
+    `within_deg` of `repose_deg` or steeper, split into those descending
+    downwind (within 90 degrees of the wind: slip faces) and upwind (a
+    windward face at repose). A field transverse dune is asymmetric, a
+    gentle windward face and a slip face in the lee, so its share at repose
+    faces downwind. Returns (lee share, windward share); 0 without sand."""
+    ang, direction = steepest_descent(height, cell_size_m)
+    held = sand > min_sand_m
+    n = int(held.sum())
+    if n == 0:
+        return 0.0, 0.0
+    steep = held & (ang >= repose_deg - within_deg)
+    lee = np.cos(np.radians(direction - wind_deg)) > 1e-9
+    return float((steep & lee).sum()) / n, float((steep & ~lee).sum()) / n
+
+
 def histogram_peak(values, bin_deg, top_deg):
     """The fullest bin of a histogram of `bin_deg` bins whose last bin ends
     at `top_deg` (values above it are counted in one overflow bin): (lower

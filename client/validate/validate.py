@@ -770,8 +770,11 @@ def transverse_law(rep, T, scenes):
         # The lattice near the measured wavelength: along the wind (the
         # crests lie across it) and for crests perpendicular to it.
         along = (nx if abs(math.cos(math.radians(wind))) >= abs(math.sin(math.radians(wind))) else ny) * cell
+        repose = float(job.get("model", {}).get("repose_deg", 33.0))
         res.append({"name": name, "cell": cell, "h": h, "o": o, "sp": sp, "step": snap["step"],
                     "bare": M.bare_fraction(snap["sand"]),
+                    "faces": M.repose_faces(h, snap["sand"], cell, wind, repose, R["faces_min_sand_m"],
+                                            R["faces_within_deg"]),
                     "angle": M.crest_wind_angle(o["crest_deg"], wind),
                     "spec_angle": M.crest_wind_angle((sp["wavevector_deg"] + 90) % 180, wind),
                     "spacing": M.wavelength_resolution(sp["wavelength_m"], along),
@@ -796,16 +799,22 @@ def transverse_law(rep, T, scenes):
             "wavelengths at the measured one along the wind, and the largest gap between the "
             "admissible crest orientations near the transverse one; a law is judged where they are "
             "at most half its tolerance, and is UNRESOLVED elsewhere unless the measurement lies "
-            "beyond what the lattice alone can move it to (then it FAILs)."
+            "beyond what the lattice alone can move it to (then it FAILs). The forms (reported, not "
+            f"judged): the shares of the sand cells whose steepest descent stands within "
+            f"{R['faces_within_deg']:g} deg of repose or steeper, facing downwind (slip faces) and "
+            "upwind (measure.repose_faces); a transverse dune of the field is asymmetric, a gentle "
+            "windward face and a slip face at repose in the lee (McKee 1979), so its share at "
+            "repose faces downwind."
             + model_units_caveat([j for _, _, j in scenes]), "")
     rep.add("| cells | crest-wind angle, tensor (deg) | coherence | crest-wind angle, spectrum (deg) "
             "| wavelength (m) | spectral peak (m) | lattice: wavelength spacing | lattice: crest gap (deg) "
-            "| bare rock |", "|---|---|---|---|---|---|---|---|---|")
+            "| bare rock | at repose, lee | at repose, windward |", "|---|---|---|---|---|---|---|---|---|---|---|")
     for r in res:
         rep.add(f"| {r['cell']:g} m | {r['angle']:.1f} | {r['o']['coherence']:.2f} | "
                 f"{r['spec_angle']:.1f} | {r['sp']['wavelength_m']:.1f} | "
                 f"{r['sp']['peak_wavelength_m']:.1f} | {100 * r['spacing']:.1f}% | "
-                f"{r['lattice']['gap_deg']:.1f} | {100 * r['bare']:.1f}% |")
+                f"{r['lattice']['gap_deg']:.1f} | {100 * r['bare']:.1f}% | "
+                f"{100 * r['faces'][0]:.1f}% | {100 * r['faces'][1]:.1f}% |")
     rep.add("")
     tol_a = R["angle_tolerance_deg"]
     lo = R["expected_crest_wind_angle_deg"] - tol_a

@@ -191,6 +191,39 @@ class Slopes(unittest.TestCase):
         mx, _ = M.max_sand_slope_deg(h, h, 1.0)
         self.assertEqual(mx, 0.0)
 
+    @staticmethod
+    def ridges(stoss_deg, lee_deg, cell=1.0, n=200, wavelength=50.0, base=20.0):
+        """Ridges across x (crests along y): the surface rises towards +x at
+        stoss_deg, then drops at lee_deg; a sawtooth of `wavelength` metres."""
+        ts, tl = math.tan(math.radians(stoss_deg)), math.tan(math.radians(lee_deg))
+        rise = wavelength * ts * tl / (ts + tl)  # crest height: both faces meet
+        crest_x = rise / ts
+        x, _ = grid(n, n, cell)
+        p = np.mod(x, wavelength)
+        h = np.where(p <= crest_x, p * ts, rise - (p - crest_x) * tl)
+        return base + h, crest_x / wavelength
+
+    def test_repose_faces_of_known_ridges(self):
+        # Transverse dunes: gentle windward faces, slip faces at repose. The
+        # cells at repose are the lee faces' share of each wavelength.
+        h, crest = self.ridges(10.0, 33.0)
+        lee, windward = M.repose_faces(h, h, 1.0, 0.0, 33.0, 0.1)
+        self.assertAlmostEqual(lee, 1.0 - crest, delta=0.03)
+        self.assertEqual(windward, 0.0)
+        # The wind reversed: the same faces now stand at repose upwind.
+        lee_r, windward_r = M.repose_faces(h, h, 1.0, 180.0, 33.0, 0.1)
+        self.assertEqual(lee_r, 0.0)
+        self.assertAlmostEqual(windward_r, lee, delta=1e-12)
+        # Ridges at repose on both flanks: half of the surface each way.
+        h2, _ = self.ridges(33.0, 33.0)
+        lee2, windward2 = M.repose_faces(h2, h2, 1.0, 0.0, 33.0, 0.1)
+        self.assertAlmostEqual(lee2, 0.5, delta=0.03)
+        self.assertAlmostEqual(windward2, 0.5, delta=0.03)
+        # Gentle everywhere, or no sand: nothing at repose.
+        h3, _ = self.ridges(10.0, 20.0)
+        self.assertEqual(M.repose_faces(h3, h3, 1.0, 0.0, 33.0, 0.1), (0.0, 0.0))
+        self.assertEqual(M.repose_faces(h, np.zeros_like(h), 1.0, 0.0, 33.0, 0.1), (0.0, 0.0))
+
     def test_bare_bedrock_steps_are_not_sand_slopes(self):
         b = np.zeros((16, 16))
         b[:, 8:] = 5.0  # a bedrock cliff, no sand anywhere
@@ -585,6 +618,8 @@ class TransverseSection(unittest.TestCase):
         rep = self.section([(4.0, self.ridges(1300.0, 4.0, 20)), (2.0, self.ridges(1300.0, 2.0, 20))])
         self.assertEqual([ok for _, ok, _ in rep.summary], [True, True])
         self.assertIn("| 4 m | 90.0 | 1.00 | 90.0 | 65.0 | 65.0 | 5.0% | ", "\n".join(rep.lines))
+        # Sinusoids 1 m high over 65 m stand nowhere at repose (bare rock, lee, windward).
+        self.assertIn("| 0.0% | 0.0% | 0.0% |", "\n".join(rep.lines))
         rep = self.section([(4.0, self.ridges(1300.0, 4.0, 20)), (2.0, self.ridges(1300.0, 2.0, 25))])
         self.assertEqual([ok for _, ok, _ in rep.summary], [True, False])
         rep = self.section([(2.0, self.ridges(256.0, 2.0, 4)), (1.0, self.ridges(256.0, 1.0, 5))])
