@@ -314,9 +314,14 @@ def lee_slopes_deg(height, sand, cell_size_m, wind_deg, min_sand_m, min_angle_de
     points downwind (within 90 degrees of the wind), steeper than
     `min_angle_deg` (flat bed and sheets excluded)."""
     ang, direction = steepest_descent(height, cell_size_m)
-    rel = np.radians(direction - wind_deg)
-    lee = (np.cos(rel) > 1e-9) & (sand > min_sand_m) & (ang > min_angle_deg)
+    lee = downwind(direction, wind_deg) & (sand > min_sand_m) & (ang > min_angle_deg)
     return ang[lee]
+
+
+def downwind(direction_deg, wind_deg):
+    """Whether a direction points downwind: within 90 degrees of the wind,
+    exactly across it excluded."""
+    return np.cos(np.radians(direction_deg - wind_deg)) > 1e-9
 
 
 def repose_faces(height, sand, cell_size_m, wind_deg, repose_deg, min_sand_m, within_deg=0.5):
@@ -334,7 +339,7 @@ def repose_faces(height, sand, cell_size_m, wind_deg, repose_deg, min_sand_m, wi
     if n == 0:
         return 0.0, 0.0
     steep = held & (ang >= repose_deg - within_deg)
-    lee = np.cos(np.radians(direction - wind_deg)) > 1e-9
+    lee = downwind(direction, wind_deg)
     return float((steep & lee).sum()) / n, float((steep & ~lee).sum()) / n
 
 

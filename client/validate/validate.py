@@ -353,6 +353,10 @@ def slab_m(job):
     return float(resolved(job)["model"]["slab_m"])
 
 
+def repose_deg(job):
+    return float(resolved(job)["model"]["repose_deg"])
+
+
 def transport_of(job):
     """EXPECTED or STOCHASTIC, with the proto's default where the job says nothing."""
     return resolved(job)["transport"]
@@ -506,7 +510,7 @@ def barchan_laws(rep, T, run_dir, job):
 
     # --- 2. shape
     B = T["barchan_shape"]
-    repose = float(job.get("model", {}).get("repose_deg", 33.0))
+    repose = repose_deg(job)
     last = snaps[-1]
     height = last["sand"] + last["bedrock"]
     final = M.dunes(last["sand"], cell, det["dune_sand_threshold_m"], det["dune_min_cells"])
@@ -770,7 +774,7 @@ def transverse_law(rep, T, scenes):
         # The lattice near the measured wavelength: along the wind (the
         # crests lie across it) and for crests perpendicular to it.
         along = (nx if abs(math.cos(math.radians(wind))) >= abs(math.sin(math.radians(wind))) else ny) * cell
-        repose = float(job.get("model", {}).get("repose_deg", 33.0))
+        repose = repose_deg(job)
         res.append({"name": name, "cell": cell, "h": h, "o": o, "sp": sp, "step": snap["step"],
                     "bare": M.bare_fraction(snap["sand"]),
                     "faces": M.repose_faces(h, snap["sand"], cell, wind, repose, R["faces_min_sand_m"],

@@ -601,8 +601,9 @@ class TransverseSection(unittest.TestCase):
         import validate as V
         V.ERG = os.environ["ERG_BIN"]  # the job's defaults come from `erg check`
         T = json.loads(Path(os.path.dirname(M.__file__), "thresholds.json").read_text())
-        job = {"wind": {"constant": {"speed_mps": 5, "direction_deg": 0}}}
-        scenes = [(f"t{cell:g}", {"sand": h, "bedrock": np.zeros_like(h), "cell_size_m": cell, "step": 2500}, job)
+        wind = {"constant": {"speed_mps": 5, "direction_deg": 0}}
+        scenes = [(f"t{cell:g}", {"sand": h, "bedrock": np.zeros_like(h), "cell_size_m": cell, "step": 2500},
+                   {"domain": {"nx": h.shape[1], "ny": h.shape[0], "cell_size_m": cell}, "wind": wind})
                   for cell, h in fields]
         with tempfile.TemporaryDirectory() as tmp:
             rep = V.Report(Path(tmp))
