@@ -25,11 +25,14 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import measure as M  # noqa: E402
 
-# The scenes every suite has; transverse_finest (a third resolution) and
-# barchans_expected (the barchans in the other transport mode) are run when
-# the suite's folder holds them.
+# The scenes every suite has; transverse_finest (a third resolution),
+# transverse_crests (a bed on a torus wide enough to judge the crests'
+# orientation) and barchans_expected (the barchans in the other transport
+# mode) are run when the suite's folder holds them.
 SCENES = ("barchans", "transverse_coarse", "transverse_fine")
-OPTIONAL = ("transverse_finest", "barchans_expected")
+OPTIONAL = ("transverse_finest", "transverse_crests", "barchans_expected")
+# The wavelength law's beds: one torus at halved cells.
+TRANSVERSE_CELLS = ("transverse_coarse", "transverse_fine", "transverse_finest")
 # One pile under the same wind at angles to the grid (section 9); run when
 # the suite's folder holds them, in each transport mode it has.
 ISOTROPY = tuple(f"isotropy_{a:02d}{m}" for m in ("", "_expected") for a in (0, 23, 37, 45))
@@ -756,41 +759,56 @@ def slip_face_law(rep, T, barchan_snaps, finals, repose, job):
     rep.law("Slip faces at repose", ok_peak and ok_max, f"lee mode {plo:.1f}-{phi:.1f} deg, steepest {worst:.2f} deg")
 
 
-def transverse_law(rep, T, scenes):
-    """scenes: (name, final snapshot, job) from the coarsest cells to the finest."""
+def transverse_measure(R, name, snap, job):
+    """Section 4's measurements of one transverse bed's final snapshot."""
+    h = snap["sand"] + snap["bedrock"]
+    cell = snap["cell_size_m"]
+    o = M.structure_orientation(h, cell)
+    sp = M.spectrum_wavelength(h, cell)
+    ny, nx = h.shape
+    wind = wind_of(job)
+    # The lattice near the measured wavelength: along the wind (the crests
+    # lie across it) and for crests perpendicular to it.
+    along = (nx if abs(math.cos(math.radians(wind))) >= abs(math.sin(math.radians(wind))) else ny) * cell
+    repose = repose_deg(job)
+    return {"name": name, "cell": cell, "h": h, "o": o, "sp": sp, "step": snap["step"],
+            "years": snap.get("time_years"),
+            "bare": M.bare_fraction(snap["sand"]),
+            "faces": M.repose_faces(h, snap["sand"], cell, wind, repose, R["faces_min_sand_m"],
+                                    R["faces_within_deg"]),
+            "angle": M.crest_wind_angle(o["crest_deg"], wind),
+            "spec_angle": M.crest_wind_angle((sp["wavevector_deg"] + 90) % 180, wind),
+            "spacing": M.wavelength_resolution(sp["wavelength_m"], along),
+            "lattice": M.orientation_resolution(sp["wavelength_m"], nx * cell, ny * cell,
+                                                (wind + 90.0) % 180.0, R["angle_tolerance_deg"])}
+
+
+def transverse_law(rep, T, scenes, crests=()):
+    """scenes: (name, final snapshot, job) of one torus from the coarsest
+    cells to the finest, for the wavelength law; crests: (name, final
+    snapshot, job) of beds on a torus wide enough to judge the crests'
+    orientation (a strip one wavelength wide admits only crests across the
+    wind). The crest law is judged on every bed whose torus resolves it."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     R = T["transverse"]
     rep.add("## 4. Transverse dunes", "")
-    res = []
-    for name, snap, job in scenes:
-        h = snap["sand"] + snap["bedrock"]
-        cell = snap["cell_size_m"]
-        o = M.structure_orientation(h, cell)
-        sp = M.spectrum_wavelength(h, cell)
-        ny, nx = h.shape
-        wind = wind_of(job)
-        # The lattice near the measured wavelength: along the wind (the
-        # crests lie across it) and for crests perpendicular to it.
-        along = (nx if abs(math.cos(math.radians(wind))) >= abs(math.sin(math.radians(wind))) else ny) * cell
-        repose = repose_deg(job)
-        res.append({"name": name, "cell": cell, "h": h, "o": o, "sp": sp, "step": snap["step"],
-                    "bare": M.bare_fraction(snap["sand"]),
-                    "faces": M.repose_faces(h, snap["sand"], cell, wind, repose, R["faces_min_sand_m"],
-                                            R["faces_within_deg"]),
-                    "angle": M.crest_wind_angle(o["crest_deg"], wind),
-                    "spec_angle": M.crest_wind_angle((sp["wavevector_deg"] + 90) % 180, wind),
-                    "spacing": M.wavelength_resolution(sp["wavelength_m"], along),
-                    "lattice": M.orientation_resolution(sp["wavelength_m"], nx * cell, ny * cell,
-                                                        (wind + 90.0) % 180.0, R["angle_tolerance_deg"])})
+    if not scenes:  # the strips left out (--skip): the wide bed alone
+        scenes, crests = crests, ()
+    res = [transverse_measure(R, *s) for s in scenes]
+    cres = [transverse_measure(R, *s) for s in crests]
     c = res[0]
     ny, nx = c["h"].shape
     sand = describe_sand(scenes[0][2])
+    when = (f"step {c['step']}" + (f", {c['years']:.2f} years" if c["years"] is not None and physical(scenes[0][2])
+                                   else ""))
     rep.add(f"The same {nx * c['cell']:g} m x {ny * c['cell']:g} m torus of sand"
             + (f" ({sand})" if sand else "")
             + f", one wind towards {wind_of(scenes[0][2]):g} deg, at "
-            + ", ".join(f"{r['cell']:g} m" for r in res) + f" cells; final snapshots (step {c['step']}). "
+            + ", ".join(f"{r['cell']:g} m" for r in res) + f" cells; final snapshots ({when})"
+            + "".join(f"; and {r['name']}, {r['h'].shape[1] * r['cell']:g} m x {r['h'].shape[0] * r['cell']:g} m "
+                      f"at {r['cell']:g} m cells (step {r['step']}), for the crests" for r in cres) + ". "
             "Transverse dunes are those of an erodible bed, sand everywhere: the share of bare rock "
             "is listed. "
             "Crest orientation from the structure tensor of the height gradient over the spectrum's "
@@ -801,43 +819,54 @@ def transverse_law(rep, T, scenes):
             "across those lattice vectors (docs/dune-forms.md, \"What a periodic domain can "
             "resolve\"): the lattice columns give the relative spacing of the admissible "
             "wavelengths at the measured one along the wind, and the largest gap between the "
-            "admissible crest orientations near the transverse one; a law is judged where they are "
-            "at most half its tolerance, and is UNRESOLVED elsewhere unless the measurement lies "
-            "beyond what the lattice alone can move it to (then it FAILs). The forms (reported, not "
-            f"judged): the shares of the sand cells whose steepest descent stands within "
-            f"{R['faces_within_deg']:g} deg of repose or steeper, facing downwind (slip faces) and "
-            "upwind (measure.repose_faces); a transverse dune of the field is asymmetric, a gentle "
-            "windward face and a slip face at repose in the lee (McKee 1979), so its share at "
-            "repose faces downwind."
-            + model_units_caveat([j for _, _, j in scenes]), "")
-    rep.add("| cells | crest-wind angle, tensor (deg) | coherence | crest-wind angle, spectrum (deg) "
+            "admissible crest orientations near the transverse one; a law is judged on the beds where "
+            "they are at most half its tolerance, and is UNRESOLVED where no bed resolves it, unless "
+            "a measurement lies beyond what the lattice alone can move it to (then it FAILs). "
+            "The forms (reported, not judged): the shares of the sand cells whose steepest descent "
+            f"stands within {R['faces_within_deg']:g} deg of repose or steeper, facing downwind "
+            "(slip faces) and upwind (measure.repose_faces); a transverse dune of the field is "
+            "asymmetric, a gentle windward face and a slip face at repose in the lee (McKee 1979), "
+            "so its share at repose faces downwind."
+            + model_units_caveat([j for _, _, j in list(scenes) + list(crests)]), "")
+    rep.add("| bed | cells | crest-wind angle, tensor (deg) | coherence | crest-wind angle, spectrum (deg) "
             "| wavelength (m) | spectral peak (m) | lattice: wavelength spacing | lattice: crest gap (deg) "
-            "| bare rock | at repose, lee | at repose, windward |", "|---|---|---|---|---|---|---|---|---|---|---|")
-    for r in res:
-        rep.add(f"| {r['cell']:g} m | {r['angle']:.1f} | {r['o']['coherence']:.2f} | "
+            "| bare rock | at repose, lee | at repose, windward |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for r in res + cres:
+        rep.add(f"| {r['name']} | {r['cell']:g} m | {r['angle']:.1f} | {r['o']['coherence']:.2f} | "
                 f"{r['spec_angle']:.1f} | {r['sp']['wavelength_m']:.1f} | "
                 f"{r['sp']['peak_wavelength_m']:.1f} | {100 * r['spacing']:.1f}% | "
                 f"{r['lattice']['gap_deg']:.1f} | {100 * r['bare']:.1f}% | "
                 f"{100 * r['faces'][0]:.1f}% | {100 * r['faces'][1]:.1f}% |")
     rep.add("")
     tol_a = R["angle_tolerance_deg"]
-    lo = R["expected_crest_wind_angle_deg"] - tol_a
-    worst_angle = min(r["angle"] for r in res)
-    resolved_a = all(r["lattice"]["gap_deg"] <= 0.5 * tol_a for r in res)
-    # Unresolved, a crest beyond what the lattice alone can force is still a FAIL.
-    reach = max(r["lattice"]["lattice_tolerance_deg"] for r in res)
-    if resolved_a:
+    expected = R["expected_crest_wind_angle_deg"]
+    lo = expected - tol_a
+    every = res + cres
+    judged = [r for r in every if r["lattice"]["gap_deg"] <= 0.5 * tol_a]
+    # A bed whose torus cannot judge the law still FAILs it with a crest
+    # beyond what the lattice alone can force.
+    beyond = [r for r in every if r not in judged
+              and r["angle"] < expected - r["lattice"]["lattice_tolerance_deg"]]
+    worst = min(judged or every, key=lambda r: r["angle"])
+    worst_angle = worst["angle"]
+    if beyond:
+        ok_angle = False
+    elif judged:
         ok_angle = worst_angle >= lo
     else:
-        ok_angle = None if worst_angle >= R["expected_crest_wind_angle_deg"] - reach else False
+        ok_angle = None
+    gaps = ", ".join(f"{r['lattice']['gap_deg']:.1f} deg ({r['name']})" for r in every)
     rep.add(f"Crests perpendicular to the wind (structure tensor): expected "
-            f"{R['expected_crest_wind_angle_deg']:g} +/- {tol_a:g} deg at every "
-            f"resolution. {verdict(ok_angle)}: worst {worst_angle:.1f} deg"
-            + ("" if worst_angle >= lo else f", {lo - worst_angle:.1f} deg outside")
-            + ("" if resolved_a else
-               f"; the torus's admissible crests near the transverse one are up to "
-               f"{max(r['lattice']['gap_deg'] for r in res):.1f} deg apart, more than half the "
-               f"tolerance ({0.5 * tol_a:g} deg), and can move an obeying pattern up to {reach:.1f} deg")
+            f"{expected:g} +/- {tol_a:g} deg. {verdict(ok_angle)}: "
+            + (f"worst {worst_angle:.1f} deg on " + ", ".join(r["name"] for r in judged)
+               + f", whose torus resolves the law (crest gap at most {0.5 * tol_a:g} deg)"
+               + ("" if worst_angle >= lo else f", {lo - worst_angle:.1f} deg outside")
+               if judged else
+               f"no bed's torus resolves the law: the admissible crests near the transverse one are "
+               f"{gaps} apart, more than half the tolerance ({0.5 * tol_a:g} deg)")
+            + "".join(f"; {r['name']}'s crests stand at {r['angle']:.1f} deg, beyond the "
+                      f"{r['lattice']['lattice_tolerance_deg']:.1f} deg its torus can force" for r in beyond)
             + ".", "")
     tol = R["max_wavelength_change"]
     changes, oks = [], []
@@ -859,12 +888,15 @@ def transverse_law(rep, T, scenes):
                    f"can change the measurement by up to {100 * slack:.0f}%")
                 + ".", "")
     ok_wl = combine(oks)
-    fig, axes = plt.subplots(1, len(res) + 1, figsize=(4 * (len(res) + 1), 4))
-    for ax, r in zip(axes[:-1], res):
-        n = r["h"].shape[0]
-        im = ax.imshow(r["h"], origin="lower", extent=(0, n * r["cell"], 0, n * r["cell"]), cmap="terrain")
-        ax.set_title(f"{r['cell']:g} m cells, step {r['step']}")
+    panels = res + cres
+    fig, axes = plt.subplots(1, len(panels) + 1, figsize=(4 * (len(panels) + 1), 4))
+    for ax, r in zip(axes[:-1], panels):
+        ny_, nx_ = r["h"].shape
+        im = ax.imshow(r["h"], origin="lower", extent=(0, nx_ * r["cell"], 0, ny_ * r["cell"]),
+                       cmap="terrain", aspect="auto")
+        ax.set_title(f"{r['cell']:g} m cells, step {r['step']}", fontsize=9)
         ax.set_xlabel("x (m), wind ->")
+        ax.set_ylabel("y (m)")
         fig.colorbar(im, ax=ax, shrink=0.8, label="height (m)")
     for r in res:
         h = r["h"] - r["h"].mean()
@@ -886,9 +918,10 @@ def transverse_law(rep, T, scenes):
     axes[-1].set_title("Spectra (dashed: measured wavelength)")
     rep.plot(fig, "transverse.png", "transverse", dpi=90)
     rep.add(f"Source: {R['source']}.", "")
+    gap = max(r["lattice"]["gap_deg"] for r in (judged or every))
     rep.law("Transverse crests perpendicular", ok_angle, f"worst crest-wind angle {worst_angle:.1f} deg"
-            + f"; lattice gap near it {max(r['lattice']['gap_deg'] for r in res):.1f} deg "
-            + f"(resolves {tol_a:g} deg at <= {0.5 * tol_a:g})")
+            + (f" on {', '.join(r['name'] for r in judged)}" if cres else "")
+            + f"; lattice gap near it {gap:.1f} deg (resolves {tol_a:g} deg at <= {0.5 * tol_a:g})")
     rep.law("Transverse wavelength resolution-independent", ok_wl,
             ("change " + ", ".join(f"{100 * ch:.1f}%" for ch in changes) + " per halving"
              if changes else "one cell size, no halving")
@@ -1049,7 +1082,7 @@ def bed_isotropy_law(rep, T, scenes):
     O = T["orientation"]
     tol, wtol = I["max_crest_difference_deg"], I["max_wavelength_difference"]
     rep.add("## 11. Isotropy of a bed: transverse crests at any angle to the grid", "")
-    rep.add(f"The same bed under the same wind, blowing at "
+    rep.add("The same bed under the same wind, blowing at "
             + ", ".join(sorted({f"{wind_of(j):g}" for _, _, j in scenes}, key=float))
             + " deg to the grid's x axis, in each transport mode: "
             + "; ".join(sorted({f"{transport_of(j)}: " + describe_layers(j) for _, _, j in scenes}))
@@ -1454,11 +1487,13 @@ def law_scenes(names, jobs):
     drift laws need no run (erg calibrate), and mass is a law of each scene
     on its own, judged over the scenes that ran."""
     trans = [n for n in names if n.startswith("transverse")]
+    cells = [n for n in trans if n in TRANSVERSE_CELLS]
     barchans = [n for n in names if n.startswith("barchans")]
     laws = {
         "Slip faces at repose": ("3. Slip faces", barchans + trans),
-        "Transverse crests perpendicular": ("4. Transverse dunes", trans),
-        "Transverse wavelength resolution-independent": ("4. Transverse dunes", trans),
+        # Judged on the wide bed where the suite has one, else on the strips.
+        "Transverse crests perpendicular": ("4. Transverse dunes", [n for n in trans if n not in cells] or cells),
+        "Transverse wavelength resolution-independent": ("4. Transverse dunes", cells),
     }
     for n in names:
         transport = transport_of(jobs[n])
@@ -1578,7 +1613,9 @@ def main():
                   [(jobs[n]["name"], ts[n][-1]) for n in ts])
         slip_face_law(rep, T, bsnaps[bnames[0]], finals, repose[bnames[0]], jobs[bnames[0]])
     if tnames:
-        transverse_law(rep, T, [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in tnames])
+        strips = [n for n in tnames if n in TRANSVERSE_CELLS]
+        transverse_law(rep, T, [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in strips],
+                       [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in tnames if n not in strips])
     inames = [n for n in ran if n.startswith("isotropy") and not n.startswith("isotropy_bed")]
     isnaps = {n: snapshots(dirs[n]) for n in inames}
     if inames:

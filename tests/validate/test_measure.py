@@ -594,7 +594,7 @@ class TransverseSection(unittest.TestCase):
     there, and the same change on a 256 m torus (wavelengths 20-25% apart)
     is UNRESOLVED."""
 
-    def section(self, fields):
+    def section(self, fields, crests=()):
         import json
         import tempfile
         from pathlib import Path
@@ -602,23 +602,25 @@ class TransverseSection(unittest.TestCase):
         V.ERG = os.environ["ERG_BIN"]  # the job's defaults come from `erg check`
         T = json.loads(Path(os.path.dirname(M.__file__), "thresholds.json").read_text())
         wind = {"constant": {"speed_mps": 5, "direction_deg": 0}}
-        scenes = [(f"t{cell:g}", {"sand": h, "bedrock": np.zeros_like(h), "cell_size_m": cell, "step": 2500},
-                   {"domain": {"nx": h.shape[1], "ny": h.shape[0], "cell_size_m": cell}, "wind": wind})
-                  for cell, h in fields]
+        scene = lambda name, cell, h: (name, {"sand": h, "bedrock": np.zeros_like(h), "cell_size_m": cell,
+                                              "step": 2500},
+                                       {"domain": {"nx": h.shape[1], "ny": h.shape[0], "cell_size_m": cell},
+                                        "wind": wind})
         with tempfile.TemporaryDirectory() as tmp:
             rep = V.Report(Path(tmp))
-            V.transverse_law(rep, T, scenes)
+            V.transverse_law(rep, T, [scene(f"t{cell:g}", cell, h) for cell, h in fields],
+                             [scene(f"wide{cell:g}", cell, h) for cell, h in crests])
         return rep
 
-    def ridges(self, length_m, cell, modes):
-        x, _ = grid(int(length_m / cell), int(length_m / cell), cell)
-        return 3.0 + np.sin(2 * math.pi * modes * x / length_m)
+    def ridges(self, length_m, cell, modes, width_m=None, across=0):
+        x, y = grid(int(length_m / cell), int((width_m or length_m) / cell), cell)
+        return 3.0 + np.sin(2 * math.pi * (modes * x / length_m + across * y / (width_m or length_m)))
 
     def test_resolved_pass_and_fail_unresolved(self):
         # 4 m and 2 m cells keep the test fast; the lattice is the torus's, not the cells'.
         rep = self.section([(4.0, self.ridges(1300.0, 4.0, 20)), (2.0, self.ridges(1300.0, 2.0, 20))])
         self.assertEqual([ok for _, ok, _ in rep.summary], [True, True])
-        self.assertIn("| 4 m | 90.0 | 1.00 | 90.0 | 65.0 | 65.0 | 5.0% | ", "\n".join(rep.lines))
+        self.assertIn("| t4 | 4 m | 90.0 | 1.00 | 90.0 | 65.0 | 65.0 | 5.0% | ", "\n".join(rep.lines))
         # Sinusoids 1 m high over 65 m stand nowhere at repose (bare rock, lee, windward).
         self.assertIn("| 0.0% | 0.0% | 0.0% |", "\n".join(rep.lines))
         rep = self.section([(4.0, self.ridges(1300.0, 4.0, 20)), (2.0, self.ridges(1300.0, 2.0, 25))])
@@ -629,6 +631,24 @@ class TransverseSection(unittest.TestCase):
         self.assertIn("a change of **20.0%** (allowed < 10%). **UNRESOLVED**: 10.0 points over; the torus admits "
                       "wavelengths 25% and 20% apart there", text)
 
+
+    def test_strips_for_the_wavelength_a_wide_bed_for_the_crests(self):
+        # Strips 1300 m along the wind and 32 m across admit only crests
+        # across the wind: they judge the wavelength, not the crests.
+        strips = [(4.0, self.ridges(1300.0, 4.0, 20, 32.0)), (2.0, self.ridges(1300.0, 2.0, 20, 32.0))]
+        rep = self.section(strips)
+        self.assertEqual([ok for _, ok, _ in rep.summary], [None, True])
+        self.assertIn("no bed's torus resolves the law", "\n".join(rep.lines))
+        # A wide bed (640 m x 1280 m) resolves the crests near the transverse
+        # one and judges them: across the wind it passes, 16.7 deg off it
+        # (mode (10, 6)) it fails, and the strips' wavelength verdict stands.
+        rep = self.section(strips, [(4.0, self.ridges(640.0, 4.0, 10, 1280.0))])
+        self.assertEqual([ok for _, ok, _ in rep.summary], [True, True])
+        self.assertIn("worst crest-wind angle 90.0 deg on wide4", rep.summary[0][2])
+        self.assertIn("| wide4 | 4 m | 90.0 |", "\n".join(rep.lines))
+        rep = self.section(strips, [(4.0, self.ridges(640.0, 4.0, 10, 1280.0, 6))])
+        self.assertEqual([ok for _, ok, _ in rep.summary], [False, True])
+        self.assertIn("worst crest-wind angle 73.3 deg on wide4", rep.summary[0][2])
 
 class Resolved(unittest.TestCase):
     """validate.py reads a job's defaults from `erg check`, once per job."""

@@ -99,6 +99,45 @@ class Scenes(unittest.TestCase):
                                          model=dict(j["model"], slab_m=None))
                 self.assertEqual(quarter(st), quarter(e))
 
+    def test_the_transverse_beds_are_one_bed_at_halved_cells(self):
+        # Section 4's wavelength law compares one bed at halved cells: the
+        # same torus in metres, the slab and the longest hop the same share
+        # of a cell, the same years (twice the steps per halving), and
+        # everything else equal. The wide bed for the crests is the coarsest
+        # one on a torus wide enough to judge them. Each is the EXPECTED
+        # one-wind isotropy bed (section 11) on cells that resolve its hop:
+        # `erg check` warns of no length lost to the grid there, and does on
+        # the 2 m isotropy bed (docs/dune-forms.md, "On cells that resolve
+        # the hop").
+        full = SCENES / "full"
+        beds = [json.loads((full / f"transverse_{n}.json").read_text()) for n in ("coarse", "fine", "finest")]
+        crests = json.loads((full / "transverse_crests.json").read_text())
+        bed = json.loads((full / "isotropy_bed_00_expected.json").read_text())
+        size = lambda j: (j["domain"]["nx"] * j["domain"]["cell_size_m"], j["domain"]["ny"] * j["domain"]["cell_size_m"])
+        share = lambda j: {k: round(j["model"][k] / j["domain"]["cell_size_m"], 9) for k in ("slab_m", "max_hop_m")}
+        rest = lambda j: dict(j, name=None, domain=None, run=None, model=dict(j["model"], slab_m=None, max_hop_m=None))
+        for a, b in zip(beds, beds[1:]):
+            self.assertEqual(b["domain"]["cell_size_m"] * 2, a["domain"]["cell_size_m"])
+            self.assertEqual(size(a), size(b))
+            self.assertEqual(share(a), share(b))
+            self.assertEqual({k: 2 * v for k, v in a["run"].items() if k != "previews"},
+                             {k: v for k, v in b["run"].items() if k != "previews"})
+        for j in beds + [crests]:
+            self.assertEqual(rest(j), rest(bed))
+            self.assertEqual(share(j), {"slab_m": 1 / 40, "max_hop_m": 16})
+        self.assertEqual(dict(crests, name=None, domain=None), dict(beds[0], name=None, domain=None))
+        self.assertEqual(crests["domain"]["cell_size_m"], beds[0]["domain"]["cell_size_m"])
+        self.assertGreater(size(crests)[1], 10 * size(beds[0])[1])
+        lost = "(resolved at domain.cell_size_m <="
+        for p in [full / f"transverse_{n}.json" for n in ("coarse", "fine", "finest", "crests")]:
+            r = subprocess.run([ERG, "check", str(p)], capture_output=True, text=True, timeout=60)
+            self.assertEqual(r.returncode, 0, r.stderr[-2000:])
+            self.assertNotIn(lost, r.stderr, p.name)
+        r = subprocess.run([ERG, "check", str(full / "isotropy_bed_00_expected.json")], capture_output=True,
+                           text=True, timeout=60)
+        self.assertIn("the saltation hop", r.stderr)
+        self.assertIn(lost, r.stderr)
+
     def test_the_fed_sources_supply_the_law_s_flux_across_their_width(self):
         # The fingering scenes (physical units) feed their source with what
         # a saturated flux carries across its width, Q_sat 2 R: the feed is
