@@ -113,6 +113,11 @@ TEST(RunFlags, UsageNamesTheFlags) {
                            "--threads", "--backend", "--resume", "--progress-fd", "--steer-dir"})
     EXPECT_NE(u.find(flag), std::string::npos) << flag;
   EXPECT_NE(error_of({"j.json", "--bogus"}).find("usage"), std::string::npos);
+  // Both programs that parse these flags, each with how it is called: the
+  // worker takes the job file directly, without erg's "run".
+  for (const char* call : {"erg run JOB.json --out DIR", "erg run --resume DIR",
+                           "erg-worker JOB.json --out DIR", "erg-worker --resume DIR"})
+    EXPECT_NE(u.find(call), std::string::npos) << call;
 }
 
 }  // namespace

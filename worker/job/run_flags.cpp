@@ -81,9 +81,12 @@ RunFlags parse_run_flags(const std::vector<std::string>& args) {
 }
 
 std::string run_flags_usage() {
-  return "usage: run JOB.json --out DIR [--steps N] [--snapshot-every K] [--checkpoint-every C]\n"
-         "                    [--threads T] [--backend auto|cpu|cuda] [--ranks P] [--tiles PXxPY]\n"
-         "       run --resume DIR [--steps N] [...]\n"
+  return "usage: erg run JOB.json --out DIR [--steps N] [--snapshot-every K]\n"
+         "               [--checkpoint-every C] [--threads T] [--backend auto|cpu|cuda]\n"
+         "               [--ranks P] [--tiles PXxPY]\n"
+         "       erg run --resume DIR [--steps N] [...]\n"
+         "       erg-worker JOB.json --out DIR [...] (the same flags)\n"
+         "       erg-worker --resume DIR [...]\n"
          "erg-worker only: [--progress-fd FD] (erg.v1.WorkerEvent JSON lines) [--quiet]\n"
          "                 [--steer-dir DIR] (apply DIR/*.json, one erg.v1.Event each, at the\n"
          "                 next step boundary; renamed .applied or .rejected)";
