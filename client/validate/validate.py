@@ -801,8 +801,10 @@ def transverse_law(rep, T, scenes, crests=()):
     c = res[0]
     ny, nx = c["h"].shape
     sand = describe_sand(scenes[0][2])
-    when = (f"step {c['step']}" + (f", {c['years']:.2f} years" if c["years"] is not None and physical(scenes[0][2])
-                                   else ""))
+    years = [r["years"] for r in res]
+    when = ("step " + ", ".join(str(r["step"]) for r in res)
+            + ("; " + ", ".join(f"{y:.2f}" for y in years) + " years"
+               if None not in years and physical(scenes[0][2]) else ""))
     rep.add(f"The same {nx * c['cell']:g} m x {ny * c['cell']:g} m torus of sand"
             + (f" ({sand})" if sand else "")
             + f", one wind towards {wind_of(scenes[0][2]):g} deg, at "
