@@ -33,6 +33,13 @@ SCENES = ("barchans", "transverse_coarse", "transverse_fine")
 OPTIONAL = ("transverse_finest", "transverse_crests", "barchans_expected")
 # The wavelength law's beds: one torus at halved cells.
 TRANSVERSE_CELLS = ("transverse_coarse", "transverse_fine", "transverse_finest")
+
+
+def transverse_beds(names):
+    """The transverse scenes among names: the strips at halved cells (the
+    wavelength law) and the other beds (wide ones, for the crest law)."""
+    trans = [n for n in names if n.startswith("transverse")]
+    return [n for n in trans if n in TRANSVERSE_CELLS], [n for n in trans if n not in TRANSVERSE_CELLS]
 # One pile under the same wind at angles to the grid (section 9); run when
 # the suite's folder holds them, in each transport mode it has.
 ISOTROPY = tuple(f"isotropy_{a:02d}{m}" for m in ("", "_expected") for a in (0, 23, 37, 45))
@@ -1488,13 +1495,13 @@ def law_scenes(names, jobs):
     names) it needs: a law is judged only on all of them. The flux and
     drift laws need no run (erg calibrate), and mass is a law of each scene
     on its own, judged over the scenes that ran."""
-    trans = [n for n in names if n.startswith("transverse")]
-    cells = [n for n in trans if n in TRANSVERSE_CELLS]
+    cells, wide = transverse_beds(names)
+    trans = cells + wide
     barchans = [n for n in names if n.startswith("barchans")]
     laws = {
         "Slip faces at repose": ("3. Slip faces", barchans + trans),
         # Judged on the wide bed where the suite has one, else on the strips.
-        "Transverse crests perpendicular": ("4. Transverse dunes", [n for n in trans if n not in cells] or cells),
+        "Transverse crests perpendicular": ("4. Transverse dunes", wide or cells),
         "Transverse wavelength resolution-independent": ("4. Transverse dunes", cells),
     }
     for n in names:
@@ -1615,9 +1622,9 @@ def main():
                   [(jobs[n]["name"], ts[n][-1]) for n in ts])
         slip_face_law(rep, T, bsnaps[bnames[0]], finals, repose[bnames[0]], jobs[bnames[0]])
     if tnames:
-        strips = [n for n in tnames if n in TRANSVERSE_CELLS]
+        strips, wide = transverse_beds(tnames)
         transverse_law(rep, T, [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in strips],
-                       [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in tnames if n not in strips])
+                       [(jobs[n]["name"], ts[n][-1], jobs[n]) for n in wide])
     inames = [n for n in ran if n.startswith("isotropy") and not n.startswith("isotropy_bed")]
     isnaps = {n: snapshots(dirs[n]) for n in inames}
     if inames:
